@@ -1,0 +1,28 @@
+// Reading and writing sparse matrices: Matrix Market text (".mtx", for exchange with other tools)
+// and PETSc binary (anything else, for speed). Every problem with a file is reported as a PETSc
+// error whose one-line message names the file (and line) and what is wrong with it; all ranks
+// raise it together, so a bad file never leaves some ranks waiting in a collective call.
+#pragma once
+
+#include <petscmat.h>
+
+namespace squeal::io {
+
+// Reads "%%MatrixMarket matrix coordinate real|integer general|symmetric" or
+// "%%MatrixMarket matrix array real|integer general" into a MATAIJ on comm (rows and columns
+// split with PETSC_DECIDE; MatSetFromOptions is not called). Symmetric files hold the lower
+// triangle and are expanded to both; duplicate coordinate entries are summed; zeros in array
+// files are not stored. Every rank parses the file but keeps only the rows it owns.
+PetscErrorCode MatLoadMatrixMarket(MPI_Comm comm, const char *path, Mat *A);
+
+// Writes A as "coordinate real general", 1-based, values with %.17g so that reading the file
+// back gives the same doubles. Rank 0 gathers the matrix and writes. Collective.
+PetscErrorCode MatViewMatrixMarket(Mat A, const char *path);
+
+// ".mtx" (any case) -> MatLoadMatrixMarket; anything else -> PETSc binary loaded as MATAIJ.
+PetscErrorCode MatLoadFromFile(MPI_Comm comm, const char *path, Mat *A);
+
+// ".mtx" (any case) -> MatViewMatrixMarket; anything else -> PETSc binary (no ".info" file).
+PetscErrorCode MatSaveToFile(Mat A, const char *path);
+
+} // namespace squeal::io

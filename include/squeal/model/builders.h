@@ -1,0 +1,60 @@
+// Builders: every way a model enters squeal. All produce the same Model (model.h).
+#pragma once
+
+#include "squeal/model/model.h"
+
+namespace squeal {
+
+// The reference 3-DOF system (method.md §1.2, §8): a mass on three inclined springs pressed on
+// a moving surface. DOFs ordered (t, b, n) in the sliding frame, H = I; with spring_frame the
+// DOFs stay in the springs' (x, y, n) frame and the contact frame carries the rotation
+// (H = R_gamma^T), which must give identical results.
+struct ThreeDofParams {
+  PetscReal   m = 1.0, k1 = 3.65e5, k2 = 2.555e5, k3 = 3.65e5;
+  PetscReal   kn    = -1; // < 0: k3 + k1 tan^2(alpha) + k2 tan^2(beta)
+  PetscReal   alpha = 30, beta = -60, gamma = 30; // degrees
+  PetscReal   c = 20, Fn = 400, mu = 0.5, V = 3;
+  FrictionLaw law          = FrictionLaw::Planar;
+  bool        spring_frame = false;
+};
+PetscErrorCode BuildThreeDof(MPI_Comm comm, const ThreeDofParams &p, Model &model);
+
+// Stiffness of the 3-DOF system in its springs' frame (x, y, n) and rotated to (t, b, n).
+void ThreeDofStiffness(const ThreeDofParams &p, PetscReal Kxyn[3][3], PetscReal Ktbn[3][3]);
+
+// Synthetic multi-contact model that keeps the general path honest: `cells` 3-DOF cells in
+// global (x, y, z) coordinates, neighbours coupled by isotropic springs `coupling`; cell i slides
+// along gamma + i * gamma_step at speed V (1 + i * speed_step), so every point has its own frame
+// and speed, and H is not the identity.
+struct ChainParams {
+  ThreeDofParams cell;
+  PetscInt       cells      = 4;
+  PetscReal      coupling   = 5.0e4;
+  PetscReal      gamma_step = 25;  // degrees
+  PetscReal      speed_step = 0.2; // relative
+};
+PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model);
+
+// A model read from files: M, K (and optionally C) in PETSc binary or Matrix Market (.mtx),
+// F in PETSc binary or HDF5 (dataset /F), the contact table in the text format of
+// ReadContactTable. Friction law, mu and V come from the options.
+struct FileModelSpec {
+  std::string mass, damping, stiffness, load, contacts;
+  PetscReal   mu = 0.5, V = 1.0;
+  FrictionLaw law = FrictionLaw::Planar;
+};
+PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &model);
+
+// Contact table, one point per line ('#' starts a comment):
+//   x y z   tx ty tz   nx ny nz   [speed_factor [g0]]
+// x y z: 0-based global DOF indices of the node's translations; t: unit sliding direction;
+// n: unit normal of the counter-surface pointing towards the structure (b = n x t);
+// speed_factor: V_c / V (default 1); g0: initial gap (default 0).
+PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set);
+PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactSet &set);
+
+// Reads -model_type (three_dof | chain | file) and the family's options, builds and validates.
+// Options: -model_* for the structure, -contact_mu, -contact_v, -contact_friction.
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model);
+
+} // namespace squeal

@@ -1,0 +1,42 @@
+// The structural model  M U'' + C U' + K U = R + F  with its contact set (method.md §1).
+//
+// One representation for every model: M, C, K are distributed PETSc AIJ matrices, F a Vec, and
+// the contact set is replicated. The built-in 3-DOF system, reduced FE models read from files
+// and the synthetic multi-contact chain all arrive here through the builders in builders.h.
+#pragma once
+
+#include "squeal/contact/contact_set.h"
+#include "squeal/core/handle.h"
+
+#include <string>
+
+namespace squeal {
+
+class Model {
+public:
+  explicit Model(MPI_Comm comm = PETSC_COMM_WORLD) : comm_(comm) {}
+
+  MPI_Comm comm() const { return comm_; }
+  PetscInt Size() const;
+  bool     HasDamping() const { return (bool)C; }
+
+  std::string name = "model";
+  MatH        M, C, K; // C may be empty: no viscous damping
+  VecH        F;
+  ContactSet  contacts;
+
+  // Checks what the physics needs: matching sizes, finite entries, symmetric M, C, K, positive
+  // mass diagonal, non-negative stiffness and damping diagonals, a valid contact set. Every
+  // failure names the matrix, the entry and the value. Collective.
+  PetscErrorCode Validate();
+  PetscErrorCode View(PetscViewer viewer) const;
+
+  // Writes M, C, K (PETSc binary, or Matrix Market if format is "mtx"), F (PETSc binary) and
+  // the contact table (text) into directory `dir`, in the form the file builder reads back.
+  PetscErrorCode Export(const char *dir, const char *format) const;
+
+private:
+  MPI_Comm comm_;
+};
+
+} // namespace squeal

@@ -1,0 +1,174 @@
+#include "squeal/app/app.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+#include "squeal/io/h5.h"
+#include "squeal/model/builders.h"
+#include "squeal/stability/equilibrium.h"
+#include "squeal/stability/stability.h"
+#include "squeal/stability/sweep.h"
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+namespace squeal {
+
+const char kHelp[] = "squeal: friction-induced self-excited vibration (brake squeal) on PETSc/SLEPc.\n"
+                     "Usage: squeal -scene FILE.yaml [-analyses stability,sweep] [-output FILE.h5] [options]\n"
+                     "Scene values are PETSc options (nested YAML keys joined by '_'); the command line overrides them.\n\n";
+
+namespace {
+
+const char *const kAnalyses[]   = {"stability", "sweep"};
+const char *const kLaterAnalyses[] = {"transient", "energy", "shooting"};
+
+struct Request {
+  bool stability = false, sweep = false;
+};
+
+PetscErrorCode ReadScene(int argc, char **argv)
+{
+  char      scene[PETSC_MAX_PATH_LEN];
+  PetscBool set, exists;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(nullptr, nullptr, "-scene", scene, sizeof(scene), &set));
+  if (!set) PetscFunctionReturn(0);
+  PetscCall(PetscTestFile(scene, 'r', &exists));
+  PetscCheck(exists, PETSC_COMM_WORLD, PETSC_ERR_FILE_OPEN, "scene file '%s' not found", scene);
+  PetscCall(PetscOptionsInsertFileYAML(PETSC_COMM_WORLD, nullptr, scene, PETSC_TRUE));
+  // The scene must not override the command line: insert the arguments again on top.
+  PetscCall(PetscOptionsInsertArgs(nullptr, argc - 1, argv + 1));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
+{
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < n; ++i) {
+    const std::string a = names[i];
+    if (a == "stability") req.stability = true;
+    else if (a == "sweep") req.sweep = true;
+    else {
+      const bool later = std::any_of(std::begin(kLaterAnalyses), std::end(kLaterAnalyses), [&](const char *x) { return a == x; });
+      SETERRQ(PETSC_COMM_WORLD, kErrInput, "%s analysis '%s' in -analyses (available: stability, sweep)",
+              later ? "not yet implemented:" : "unknown", a.c_str());
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+std::string DefaultOutput()
+{
+  char      scene[PETSC_MAX_PATH_LEN];
+  PetscBool set = PETSC_FALSE;
+  PetscCallAbort(PETSC_COMM_WORLD, PetscOptionsGetString(nullptr, nullptr, "-scene", scene, sizeof(scene), &set));
+  if (!set) return "squeal.h5";
+  std::string s(scene);
+  s = s.substr(s.find_last_of('/') + 1);
+  return s.substr(0, s.find_last_of('.')) + ".h5";
+}
+
+PetscErrorCode WriteModelInfo(const Model &model, io::H5Writer &out)
+{
+  PetscFunctionBeginUser;
+  PetscCall(out.WriteAttribute("/model", "name", model.name.c_str()));
+  PetscCall(out.WriteAttribute("/model", "dofs", model.Size()));
+  PetscCall(out.WriteAttribute("/model", "contact_points", model.contacts.Size()));
+  PetscCall(out.WriteAttribute("/model", "mu", model.contacts.mu));
+  PetscCall(out.WriteAttribute("/model", "V", model.contacts.V));
+  PetscCall(out.WriteAttribute("/model", "friction", FrictionLawName(model.contacts.law)));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode RunApp(int argc, char **argv)
+{
+  const MPI_Comm comm = PETSC_COMM_WORLD;
+  char           output[PETSC_MAX_PATH_LEN] = "";
+  char          *names[16];
+  PetscInt       nnames = 16;
+  PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE;
+  Request        req;
+  PetscLogStage  st_eq, st_stab, st_sweep;
+  PetscFunctionBeginUser;
+  PetscCall(ReadScene(argc, argv));
+  PetscCall(PetscOptionsHasHelp(nullptr, &help));
+  PetscCall(PetscLogStageRegister("Equilibrium", &st_eq));
+  PetscCall(PetscLogStageRegister("Stability", &st_stab));
+  PetscCall(PetscLogStageRegister("Sweep", &st_sweep));
+
+  const std::string default_output = DefaultOutput();
+  PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
+  PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep", "RunApp", names, &nnames, &set));
+  std::snprintf(output, sizeof(output), "%s", default_output.c_str());
+  PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
+                               sizeof(output), nullptr));
+  PetscCall(PetscOptionsBool("-squeal_traceback", "Full PETSc tracebacks instead of one-line error messages", "PushErrorHandler",
+                             traceback, &traceback, nullptr));
+  PetscOptionsEnd();
+  if (!set) {
+    nnames   = 1;
+    names[0] = nullptr;
+    PetscCall(PetscStrallocpy("stability", &names[0]));
+  }
+  PetscErrorCode perr = ParseAnalyses(names, nnames, req);
+  for (PetscInt i = 0; i < nnames; ++i) PetscCall(PetscFree(names[i]));
+  PetscCall(perr);
+
+  // Read every component's options up front (cheap) so that a typo is caught before hours of work.
+  Model model(comm);
+  PetscCall(ModelCreateFromOptions(comm, model));
+  EquilibriumSolver eqs(comm);
+  PetscCall(eqs.SetFromOptions());
+  StabilitySolver stab(comm);
+  PetscCall(stab.SetFromOptions());
+  SweepSolver sweep(comm);
+  PetscCall(sweep.SetFromOptions(model.contacts.V));
+  if (help) PetscFunctionReturn(0);
+  PetscCall(CheckUnusedOptions(comm, true));
+
+  PetscCall(model.View(PETSC_VIEWER_STDOUT_(comm)));
+  io::H5Writer out;
+  PetscCall(out.Open(comm, output));
+  PetscCall(WriteModelInfo(model, out));
+
+  if (req.stability) {
+    SlidingEquilibrium eq;
+    PetscCall(PetscLogStagePush(st_eq));
+    PetscCall(eqs.Solve(model, eq));
+    PetscCall(PetscLogStagePop());
+    PetscCall(eqs.View(model, eq, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(WriteEquilibrium(model, eq, out));
+
+    StabilityResult res;
+    PetscCall(PetscLogStagePush(st_stab));
+    PetscCall(stab.Solve(model, eq, res));
+    PetscCall(PetscLogStagePop());
+    PetscCall(stab.View(res, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(stab.ViewFromOptions(res));
+    PetscCall(WriteStability(res, out));
+    if (res.unstable.empty())
+      PetscCall(PetscPrintf(comm, "sliding equilibrium is stable: no self-excited vibration expected\n"));
+    for (PetscInt i : res.unstable) {
+      const Mode &m = res.modes[i];
+      PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,
+                            (double)m.Frequency(), (double)m.Period(), (double)m.sigma));
+    }
+  }
+  if (req.sweep) {
+    SweepResult sr;
+    PetscCall(PetscLogStagePush(st_sweep));
+    PetscCall(sweep.Solve(sr));
+    PetscCall(PetscLogStagePop());
+    PetscCall(sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(sweep.Write(sr, out));
+  }
+  PetscCall(out.Close());
+  PetscCall(PetscPrintf(comm, "results written to %s\n", output));
+  PetscCall(CheckUnusedOptions(comm, false));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal

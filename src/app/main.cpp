@@ -1,0 +1,13 @@
+#include "squeal/app/app.h"
+#include "squeal/core/errors.h"
+
+#include <slepcsys.h>
+
+int main(int argc, char **argv)
+{
+  PetscCall(SlepcInitialize(&argc, &argv, nullptr, squeal::kHelp));
+  PetscErrorCode ierr = squeal::PushErrorHandler();
+  if (!ierr) ierr = squeal::RunApp(argc, argv);
+  PetscCall(SlepcFinalize());
+  return ierr ? 1 : 0;
+}

@@ -1,0 +1,359 @@
+#include "squeal/model/builders.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+#include "squeal/core/sparse.h"
+#include "squeal/io/matrix_io.h"
+
+#include <petscviewerhdf5.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace squeal {
+
+namespace {
+
+constexpr PetscReal kDeg = PETSC_PI / 180.0;
+
+PetscErrorCode CreateVecFromDense(MPI_Comm comm, const std::vector<PetscReal> &x, Vec *v)
+{
+  PetscInt rstart, rend;
+  PetscFunctionBeginUser;
+  PetscCall(VecCreateMPI(comm, PETSC_DECIDE, (PetscInt)x.size(), v));
+  PetscCall(VecGetOwnershipRange(*v, &rstart, &rend));
+  for (PetscInt i = rstart; i < rend; ++i) PetscCall(VecSetValue(*v, i, x[i], INSERT_VALUES));
+  PetscCall(VecAssemblyBegin(*v));
+  PetscCall(VecAssemblyEnd(*v));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CreateDiagonal(MPI_Comm comm, PetscInt N, PetscReal value, Mat *A)
+{
+  Triplets t;
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < N; ++i) t.Add(i, i, value);
+  PetscCall(MatCreateFromTriplets(comm, PETSC_DECIDE, PETSC_DECIDE, N, N, t, A, true));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CheckThreeDofParams(MPI_Comm comm, const ThreeDofParams &p)
+{
+  PetscFunctionBeginUser;
+  PetscCall(CheckReal(comm, "model_", "m", p.m, Range::Positive()));
+  PetscCall(CheckReal(comm, "model_", "k1", p.k1, Range::Positive()));
+  PetscCall(CheckReal(comm, "model_", "k2", p.k2, Range::Positive()));
+  PetscCall(CheckReal(comm, "model_", "k3", p.k3, Range::NonNegative()));
+  if (p.kn >= 0 || PetscIsInfOrNanReal(p.kn)) PetscCall(CheckReal(comm, "model_", "kn", p.kn, Range::Positive()));
+  PetscCall(CheckReal(comm, "model_", "alpha", p.alpha, {-90, 90, true}));
+  PetscCall(CheckReal(comm, "model_", "beta", p.beta, {-90, 90, true}));
+  PetscCall(CheckReal(comm, "model_", "gamma", p.gamma, Range::Any()));
+  PetscCall(CheckReal(comm, "model_", "c", p.c, Range::NonNegative()));
+  PetscCall(CheckReal(comm, "model_", "fn", p.Fn, Range::Any()));
+  PetscCall(CheckReal(comm, "contact_", "mu", p.mu, Range::NonNegative()));
+  PetscCall(CheckReal(comm, "contact_", "v", p.V, Range::Positive()));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+void ThreeDofStiffness(const ThreeDofParams &p, PetscReal Kx[3][3], PetscReal Kt[3][3])
+{
+  const PetscReal ta = std::tan(p.alpha * kDeg), tb = std::tan(p.beta * kDeg);
+  const PetscReal kn = p.kn >= 0 ? p.kn : p.k3 + p.k1 * ta * ta + p.k2 * tb * tb;
+  const PetscReal K[3][3] = {{p.k1, 0, p.k1 * ta}, {0, p.k2, p.k2 * tb}, {p.k1 * ta, p.k2 * tb, kn}};
+  const PetscReal c = std::cos(p.gamma * kDeg), s = std::sin(p.gamma * kDeg);
+  const PetscReal R[3][3] = {{c, s, 0}, {-s, c, 0}, {0, 0, 1}}; // U_tbn = R U_xyn  (1.3)
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      Kx[i][j] = K[i][j];
+      Kt[i][j] = 0;
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) Kt[i][j] += R[i][a] * K[a][b] * R[j][b];
+    }
+}
+
+PetscErrorCode BuildThreeDof(MPI_Comm comm, const ThreeDofParams &p, Model &model)
+{
+  PetscReal Kx[3][3], Kt[3][3];
+  Triplets  t;
+  PetscFunctionBeginUser;
+  PetscCall(CheckThreeDofParams(comm, p));
+  ThreeDofStiffness(p, Kx, Kt);
+  const PetscReal(*K)[3] = p.spring_frame ? Kx : Kt;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (K[i][j] != 0) t.Add(i, j, K[i][j]);
+  PetscCall(MatCreateFromTriplets(comm, PETSC_DECIDE, PETSC_DECIDE, 3, 3, t, model.K.out(), true));
+  PetscCall(CreateDiagonal(comm, 3, p.m, model.M.out()));
+  if (p.c > 0) PetscCall(CreateDiagonal(comm, 3, p.c, model.C.out()));
+  else model.C.reset();
+  PetscCall(CreateVecFromDense(comm, {0, 0, -p.Fn}, model.F.out()));
+
+  ContactPoint pt;
+  pt.nodes = {ContactNode{{0, 1, 2}, 1.0}};
+  if (p.spring_frame) {
+    const PetscReal g = p.gamma * kDeg;
+    pt.t              = {std::cos(g), std::sin(g), 0};
+  }
+  model.contacts.points = {pt};
+  model.contacts.law    = p.law;
+  model.contacts.mu     = p.mu;
+  model.contacts.V      = p.V;
+  model.name            = p.spring_frame ? "three_dof (spring frame)" : "three_dof";
+  PetscCall(model.Validate());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model)
+{
+  PetscReal Kx[3][3], Kt[3][3];
+  Triplets  t;
+  PetscFunctionBeginUser;
+  PetscCall(CheckThreeDofParams(comm, p.cell));
+  PetscCheck(p.cells >= 1, comm, kErrInput, "option -model_cells = %" PetscInt_FMT ": expected >= 1", p.cells);
+  PetscCall(CheckReal(comm, "model_", "coupling", p.coupling, Range::NonNegative()));
+  PetscCall(CheckReal(comm, "model_", "gamma_step", p.gamma_step, Range::Any()));
+  PetscCall(CheckReal(comm, "model_", "speed_step", p.speed_step, Range::Any()));
+  ThreeDofStiffness(p.cell, Kx, Kt);
+  const PetscInt N = 3 * p.cells;
+  std::vector<PetscReal> F(N, 0.0);
+  model.contacts.points.clear();
+  for (PetscInt i = 0; i < p.cells; ++i) {
+    const PetscInt o = 3 * i;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        if (Kx[a][b] != 0) t.Add(o + a, o + b, Kx[a][b]);
+    if (i + 1 < p.cells && p.coupling > 0)
+      for (int a = 0; a < 3; ++a) {
+        t.Add(o + a, o + a, p.coupling);
+        t.Add(o + 3 + a, o + 3 + a, p.coupling);
+        t.Add(o + a, o + 3 + a, -p.coupling);
+        t.Add(o + 3 + a, o + a, -p.coupling);
+      }
+    F[o + 2] = -p.cell.Fn;
+    ContactPoint   pt;
+    const PetscReal g = (p.cell.gamma + i * p.gamma_step) * kDeg;
+    pt.nodes          = {ContactNode{{o, o + 1, o + 2}, 1.0}};
+    pt.t              = {std::cos(g), std::sin(g), 0};
+    pt.speed_factor   = 1.0 + i * p.speed_step;
+    model.contacts.points.push_back(pt);
+  }
+  PetscCall(MatCreateFromTriplets(comm, PETSC_DECIDE, PETSC_DECIDE, N, N, t, model.K.out(), true));
+  PetscCall(CreateDiagonal(comm, N, p.cell.m, model.M.out()));
+  if (p.cell.c > 0) PetscCall(CreateDiagonal(comm, N, p.cell.c, model.C.out()));
+  else model.C.reset();
+  PetscCall(CreateVecFromDense(comm, F, model.F.out()));
+  model.contacts.law = p.cell.law;
+  model.contacts.mu  = p.cell.mu;
+  model.contacts.V   = p.cell.V;
+  model.name         = "chain";
+  PetscCall(model.Validate());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set)
+{
+  PetscBool exists;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTestFile(path, 'r', &exists));
+  PetscCheck(exists, comm, PETSC_ERR_FILE_OPEN, "contact table '%s' not found", path);
+  std::ifstream in(path);
+  std::string   line;
+  int           lineno = 0;
+  set.points.clear();
+  while (std::getline(in, line)) {
+    ++lineno;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    std::istringstream ss(line);
+    std::vector<double> v;
+    std::string         tok;
+    while (ss >> tok) {
+      char  *end = nullptr;
+      double x   = std::strtod(tok.c_str(), &end);
+      PetscCheck(end && *end == '\0', comm, PETSC_ERR_FILE_UNEXPECTED, "contact table '%s', line %d: '%s' is not a number",
+                 path, lineno, tok.c_str());
+      v.push_back(x);
+    }
+    if (v.empty()) continue;
+    PetscCheck(v.size() >= 9 && v.size() <= 11, comm, PETSC_ERR_FILE_UNEXPECTED,
+               "contact table '%s', line %d: %d values, expected 9 to 11 (x y z tx ty tz nx ny nz [speed_factor [g0]])", path,
+               lineno, (int)v.size());
+    ContactPoint pt;
+    ContactNode  nd;
+    for (int k = 0; k < 3; ++k) {
+      PetscCheck(v[k] == std::floor(v[k]), comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "contact table '%s', line %d: DOF index %g is not an integer", path, lineno, v[k]);
+      nd.dofs[k] = (PetscInt)v[k];
+    }
+    pt.nodes        = {nd};
+    pt.t            = {v[3], v[4], v[5]};
+    pt.n            = {v[6], v[7], v[8]};
+    pt.speed_factor = v.size() > 9 ? v[9] : 1.0;
+    pt.g0           = v.size() > 10 ? v[10] : 0.0;
+    set.points.push_back(pt);
+  }
+  PetscCheck(!set.points.empty(), comm, PETSC_ERR_FILE_UNEXPECTED, "contact table '%s' has no contact point", path);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactSet &set)
+{
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  if (rank == 0) {
+    std::ofstream out(path);
+    PetscCheck(out.good(), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "cannot write contact table '%s'", path);
+    out << "# squeal contact table: x y z  tx ty tz  nx ny nz  speed_factor g0\n";
+    out.precision(17);
+    for (const ContactPoint &p : set.points) {
+      PetscCheck(p.nodes.size() == 1, PETSC_COMM_SELF, PETSC_ERR_SUP, "the text contact table holds one node per point");
+      const ContactNode &nd = p.nodes[0];
+      out << nd.dofs[0] << ' ' << nd.dofs[1] << ' ' << nd.dofs[2] << "  " << p.t[0] << ' ' << p.t[1] << ' ' << p.t[2] << "  "
+          << p.n[0] << ' ' << p.n[1] << ' ' << p.n[2] << "  " << p.speed_factor << ' ' << p.g0 << '\n';
+    }
+  }
+  PetscCallMPI(MPI_Barrier(comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &model)
+{
+  PetscFunctionBeginUser;
+  PetscCheck(!s.mass.empty() && !s.stiffness.empty() && !s.load.empty() && !s.contacts.empty(), comm, kErrInput,
+             "a file model needs -model_mass, -model_stiffness, -model_load and -model_contacts");
+  PetscCall(io::MatLoadFromFile(comm, s.mass.c_str(), model.M.out()));
+  PetscCall(io::MatLoadFromFile(comm, s.stiffness.c_str(), model.K.out()));
+  if (!s.damping.empty()) PetscCall(io::MatLoadFromFile(comm, s.damping.c_str(), model.C.out()));
+  else model.C.reset();
+  PetscInt mK, nK, mM, nM;
+  PetscCall(MatGetSize(model.K, &mK, &nK));
+  PetscCall(MatGetSize(model.M, &mM, &nM));
+  PetscCheck(mK == mM && nK == nM, comm, kErrInput,
+             "mismatched matrix sizes: M ('%s') is %" PetscInt_FMT " x %" PetscInt_FMT ", K ('%s') is %" PetscInt_FMT
+             " x %" PetscInt_FMT,
+             s.mass.c_str(), mM, nM, s.stiffness.c_str(), mK, nK);
+
+  PetscBool exists;
+  PetscCall(PetscTestFile(s.load.c_str(), 'r', &exists));
+  PetscCheck(exists, comm, PETSC_ERR_FILE_OPEN, "load vector file '%s' not found", s.load.c_str());
+  const bool  h5 = s.load.size() > 3 && s.load.compare(s.load.size() - 3, 3, ".h5") == 0;
+  PetscViewer viewer;
+  PetscCall(VecCreate(comm, model.F.out()));
+  PetscCall(PetscObjectSetName((PetscObject)(Vec)model.F, "F"));
+  if (h5) PetscCall(PetscViewerHDF5Open(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
+  else PetscCall(PetscViewerBinaryOpen(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
+  PetscCall(VecLoad(model.F, viewer));
+  PetscCall(PetscViewerDestroy(&viewer));
+  PetscInt nF;
+  PetscCall(VecGetSize(model.F, &nF));
+  PetscCheck(nF == mK, comm, kErrInput, "mismatched sizes: load vector F ('%s') has %" PetscInt_FMT " entries, K is %" PetscInt_FMT " x %" PetscInt_FMT,
+             s.load.c_str(), nF, mK, nK);
+  // VecLoad picks its own layout; give F the layout of K's rows.
+  {
+    Vec Fk;
+    PetscCall(MatCreateVecs(model.K, nullptr, &Fk));
+    PetscCall(VecCopy(model.F, Fk));
+    PetscCall(VecDestroy(model.F.out()));
+    *model.F.out() = Fk;
+  }
+
+  PetscCall(ReadContactTable(comm, s.contacts.c_str(), model.contacts));
+  model.contacts.law = s.law;
+  model.contacts.mu  = s.mu;
+  model.contacts.V   = s.V;
+  model.name         = "file:" + s.stiffness;
+  PetscCall(model.Validate());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model)
+{
+  const char *const types[] = {"three_dof", "chain", "file"};
+  const char *const laws[]  = {"planar", "rectilinear"};
+  const char *const frames[] = {"sliding", "spring"};
+  PetscInt          type = 0, law = 0, frame = 0;
+  ChainParams       ch;
+  ThreeDofParams   &p = ch.cell;
+  FileModelSpec     fs;
+  char              buf[PETSC_MAX_PATH_LEN] = "";
+  char              exportdir[PETSC_MAX_PATH_LEN] = "";
+  PetscBool         help = PETSC_FALSE, set;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsHasHelp(nullptr, &help));
+
+  PetscOptionsBegin(comm, "contact_", "Contact and friction", "Model");
+  SquealOptionsReal("-mu", "Coulomb friction coefficient", "ContactSet", &p.mu, Range::NonNegative());
+  SquealOptionsReal("-v", "Counter-surface speed V (m/s); point c slides at speed_factor_c * V", "ContactSet", &p.V,
+                    Range::Positive());
+  PetscCall(PetscOptionsEList("-friction", "Friction law: planar (disc |r_T| <= mu r_n) or rectilinear (along t only)",
+                              "ContactSet", laws, 2, laws[law], &law, nullptr));
+  PetscOptionsEnd();
+
+  PetscOptionsBegin(comm, "model_", "Structural model", "Model");
+  PetscCall(PetscOptionsEList("-type", "Model: three_dof (reference system), chain (synthetic multi-contact), file",
+                              "ModelCreateFromOptions", types, 3, types[type], &type, nullptr));
+  if (type != 2 || help) {
+    SquealOptionsReal("-m", "Mass (kg)", "BuildThreeDof", &p.m, Range::Positive());
+    SquealOptionsReal("-k1", "Spring 1 stiffness projected on x (N/m)", "BuildThreeDof", &p.k1, Range::Positive());
+    SquealOptionsReal("-k2", "Spring 2 stiffness projected on y (N/m)", "BuildThreeDof", &p.k2, Range::Positive());
+    SquealOptionsReal("-k3", "Normal spring stiffness (N/m)", "BuildThreeDof", &p.k3, Range::NonNegative());
+    SquealOptionsReal("-kn", "K_nn (N/m); negative: k3 + k1 tan^2(alpha) + k2 tan^2(beta)", "BuildThreeDof", &p.kn,
+                      Range::Any());
+    SquealOptionsReal("-alpha", "Inclination of spring 1 in the x-n plane (degrees)", "BuildThreeDof", &p.alpha,
+                      Range::OpenBelow(-90, 90));
+    SquealOptionsReal("-beta", "Inclination of spring 2 in the y-n plane (degrees)", "BuildThreeDof", &p.beta,
+                      Range::OpenBelow(-90, 90));
+    SquealOptionsReal("-gamma", "Angle from spring axis x to the sliding direction t (degrees)", "BuildThreeDof", &p.gamma,
+                      Range::Any());
+    SquealOptionsReal("-c", "Isotropic viscous damping C = c I (N s/m)", "BuildThreeDof", &p.c, Range::NonNegative());
+    SquealOptionsReal("-fn", "Preload Fn (N), F = (0, 0, -Fn) pushes onto the surface", "BuildThreeDof", &p.Fn, Range::Any());
+    PetscCall(PetscOptionsEList("-frame", "DOF frame of the 3-DOF system: sliding (t,b,n; H = I) or spring (x,y,n; H = R^T)",
+                                "BuildThreeDof", frames, 2, frames[frame], &frame, nullptr));
+  }
+  if (type == 1 || help) {
+    PetscCall(PetscOptionsInt("-cells", "Number of 3-DOF cells (one contact point each)", "BuildChain", ch.cells, &ch.cells,
+                              nullptr));
+    SquealOptionsReal("-coupling", "Stiffness of the springs between neighbouring cells (N/m)", "BuildChain", &ch.coupling,
+                      Range::NonNegative());
+    SquealOptionsReal("-gamma_step", "Change of sliding direction from cell to cell (degrees)", "BuildChain", &ch.gamma_step,
+                      Range::Any());
+    SquealOptionsReal("-speed_step", "Relative change of sliding speed from cell to cell", "BuildChain", &ch.speed_step,
+                      Range::Any());
+  }
+  if (type == 2 || help) {
+    struct {
+      const char  *opt, *text;
+      std::string *dst;
+    } files[] = {{"-mass", "Mass matrix file (PETSc binary, or Matrix Market .mtx)", &fs.mass},
+                 {"-stiffness", "Stiffness matrix file (PETSc binary, or .mtx)", &fs.stiffness},
+                 {"-damping", "Damping matrix file (optional; PETSc binary, or .mtx)", &fs.damping},
+                 {"-load", "Load vector F (PETSc binary, or HDF5 .h5 with dataset /F)", &fs.load},
+                 {"-contacts", "Contact table (text: x y z tx ty tz nx ny nz [speed_factor [g0]])", &fs.contacts}};
+    for (auto &f : files) {
+      buf[0] = '\0';
+      PetscCall(PetscOptionsString(f.opt, f.text, "BuildFromFiles", buf, buf, sizeof(buf), &set));
+      if (set) *f.dst = buf;
+    }
+  }
+  PetscCall(PetscOptionsString("-export", "Write the built model (M, C, K, F, contacts.txt) to this directory", "Model::Export",
+                               exportdir, exportdir, sizeof(exportdir), nullptr));
+  PetscOptionsEnd();
+
+  p.law          = law == 0 ? FrictionLaw::Planar : FrictionLaw::Rectilinear;
+  p.spring_frame = frame == 1;
+  fs.mu          = p.mu;
+  fs.V           = p.V;
+  fs.law         = p.law;
+  switch (type) {
+  case 0: PetscCall(BuildThreeDof(comm, p, model)); break;
+  case 1: PetscCall(BuildChain(comm, ch, model)); break;
+  default: PetscCall(BuildFromFiles(comm, fs, model)); break;
+  }
+  if (exportdir[0]) PetscCall(model.Export(exportdir, "bin"));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal

@@ -1,0 +1,144 @@
+#include "squeal/model/model.h"
+#include "squeal/core/errors.h"
+#include "squeal/io/matrix_io.h"
+#include "squeal/model/builders.h"
+
+#include <string>
+
+namespace squeal {
+
+namespace {
+
+// ||A - A^T||_F <= tol ||A||_F; MatIsSymmetric's tolerance is absolute per entry, which does not
+// suit matrices whose entries span ten orders of magnitude.
+PetscErrorCode CheckSymmetric(Mat A, const char *what, MPI_Comm comm)
+{
+  Mat       At;
+  PetscReal nA, nD;
+  PetscFunctionBeginUser;
+  PetscCall(MatNorm(A, NORM_FROBENIUS, &nA));
+  PetscCall(MatTranspose(A, MAT_INITIAL_MATRIX, &At));
+  PetscCall(MatAXPY(At, -1.0, A, DIFFERENT_NONZERO_PATTERN));
+  PetscCall(MatNorm(At, NORM_FROBENIUS, &nD));
+  PetscCall(MatDestroy(&At));
+  PetscCheck(nD <= 1e-10 * nA, comm, kErrInput, "%s is not symmetric: ||A - A^T|| / ||A|| = %g", what, (double)(nD / nA));
+  PetscFunctionReturn(0);
+}
+
+// Fails naming the first diagonal entry that is not finite or violates the sign requirement.
+PetscErrorCode CheckDiagonal(Mat A, const char *what, const char *problem, bool strictly_positive, MPI_Comm comm)
+{
+  Vec                d;
+  const PetscScalar *a;
+  PetscInt           rstart, rend, bad = -1;
+  PetscReal          badv = 0;
+  PetscFunctionBeginUser;
+  PetscCall(MatCreateVecs(A, &d, nullptr));
+  PetscCall(MatGetDiagonal(A, d));
+  PetscCall(VecGetOwnershipRange(d, &rstart, &rend));
+  PetscCall(VecGetArrayRead(d, &a));
+  for (PetscInt i = rstart; i < rend && bad < 0; ++i) {
+    const PetscReal v = PetscRealPart(a[i - rstart]);
+    if (PetscIsInfOrNanReal(v) || (strictly_positive ? v <= 0 : v < 0)) bad = i, badv = v;
+  }
+  PetscCall(VecRestoreArrayRead(d, &a));
+  PetscCall(VecDestroy(&d));
+  // Report the first offending entry in global order, whichever rank found it.
+  PetscInt  first = 0;
+  PetscReal value = 0;
+  const PetscInt mine = bad < 0 ? PETSC_MAX_INT : bad;
+  PetscCallMPI(MPI_Allreduce(&mine, &first, 1, MPIU_INT, MPI_MIN, comm));
+  const PetscReal contrib = (mine == first) ? badv : 0.0;
+  PetscCallMPI(MPI_Allreduce(&contrib, &value, 1, MPIU_REAL, MPIU_SUM, comm));
+  PetscCheck(first == PETSC_MAX_INT, comm, kErrInput, "%s: %s(%" PetscInt_FMT ",%" PetscInt_FMT ") = %g", problem, what,
+             first, first, (double)value);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CheckFinite(Mat A, const char *what, MPI_Comm comm)
+{
+  PetscReal nrm;
+  PetscFunctionBeginUser;
+  PetscCall(MatNorm(A, NORM_FROBENIUS, &nrm));
+  PetscCheck(!PetscIsInfOrNanReal(nrm), comm, kErrInput, "%s has NaN or infinite entries", what);
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscInt Model::Size() const
+{
+  PetscInt n = 0;
+  if (K) PetscCallAbort(comm_, MatGetSize(K, &n, nullptr));
+  return n;
+}
+
+PetscErrorCode Model::Validate()
+{
+  PetscInt  m, n, nf;
+  PetscReal fn;
+  PetscFunctionBeginUser;
+  PetscCheck(M && K && F, comm_, kErrInput, "model '%s' is incomplete: M, K and F are required", name.c_str());
+  PetscCall(MatGetSize(K, &m, &n));
+  PetscCheck(m == n, comm_, kErrInput, "stiffness matrix K is %" PetscInt_FMT " x %" PetscInt_FMT ": expected square", m, n);
+  const PetscInt N = m;
+  struct Named {
+    Mat         A;
+    const char *name;
+  } mats[] = {{M, "mass matrix M"}, {C, "damping matrix C"}};
+  for (const Named &x : mats) {
+    if (!x.A) continue;
+    PetscCall(MatGetSize(x.A, &m, &n));
+    PetscCheck(m == N && n == N, comm_, kErrInput,
+               "%s is %" PetscInt_FMT " x %" PetscInt_FMT " but K is %" PetscInt_FMT " x %" PetscInt_FMT, x.name, m, n, N, N);
+  }
+  PetscCall(VecGetSize(F, &nf));
+  PetscCheck(nf == N, comm_, kErrInput, "load vector F has %" PetscInt_FMT " entries but K is %" PetscInt_FMT " x %" PetscInt_FMT,
+             nf, N, N);
+  PetscCall(VecNorm(F, NORM_2, &fn));
+  PetscCheck(!PetscIsInfOrNanReal(fn), comm_, kErrInput, "load vector F has NaN or infinite entries");
+  PetscCall(CheckFinite(M, "mass matrix M", comm_));
+  PetscCall(CheckFinite(K, "stiffness matrix K", comm_));
+  if (C) PetscCall(CheckFinite(C, "damping matrix C", comm_));
+  PetscCall(CheckDiagonal(M, "M", "non-positive mass", true, comm_));
+  PetscCall(CheckDiagonal(K, "K", "negative stiffness", false, comm_));
+  if (C) PetscCall(CheckDiagonal(C, "C", "negative damping", false, comm_));
+  PetscCall(CheckSymmetric(M, "mass matrix M", comm_));
+  PetscCall(CheckSymmetric(K, "stiffness matrix K", comm_));
+  if (C) PetscCall(CheckSymmetric(C, "damping matrix C", comm_));
+  PetscCall(contacts.Validate(comm_, N));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Model::View(PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  PetscCall(PetscViewerASCIIPrintf(viewer, "model '%s': %" PetscInt_FMT " DOFs, %s damping\n", name.c_str(), Size(),
+                                   HasDamping() ? "viscous" : "no"));
+  PetscCall(PetscViewerASCIIPushTab(viewer));
+  PetscCall(contacts.View(viewer));
+  PetscCall(PetscViewerASCIIPopTab(viewer));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Model::Export(const char *dir, const char *format) const
+{
+  const std::string d   = std::string(dir) + "/";
+  const std::string ext = std::string(".") + (format ? format : "bin");
+  PetscViewer       v;
+  PetscFunctionBeginUser;
+  PetscCall(PetscMkdir(dir));
+  PetscCall(io::MatSaveToFile(M, (d + "M" + ext).c_str()));
+  PetscCall(io::MatSaveToFile(K, (d + "K" + ext).c_str()));
+  if (C) PetscCall(io::MatSaveToFile(C, (d + "C" + ext).c_str()));
+  PetscCall(PetscViewerBinaryOpen(comm_, (d + "F.bin").c_str(), FILE_MODE_WRITE, &v));
+  PetscCall(VecView(F, v));
+  PetscCall(PetscViewerDestroy(&v));
+  PetscCall(WriteContactTable(comm_, (d + "contacts.txt").c_str(), contacts));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal

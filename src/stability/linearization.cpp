@@ -1,0 +1,105 @@
+#include "squeal/stability/linearization.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/sparse.h"
+
+#include <algorithm>
+#include <map>
+
+namespace squeal {
+
+namespace {
+
+// Nonzero entries of one local direction column of point c: DOF -> weight * e_k.
+std::map<PetscInt, PetscReal> Column(const ContactSet &cs, PetscInt c, int dir)
+{
+  std::map<PetscInt, PetscReal> col;
+  const Eigen::Vector3d        &e = cs.Axis(c, dir);
+  for (const ContactNode &nd : cs.points[c].nodes)
+    for (int k = 0; k < 3; ++k)
+      if (e[k] != 0) col[nd.dofs[k]] += nd.weight * e[k];
+  for (auto it = col.begin(); it != col.end();) it = (it->second == 0) ? col.erase(it) : std::next(it);
+  return col;
+}
+
+// A * B * C without forming anything larger than needed.
+PetscErrorCode TripleProduct(Mat A, Mat B, Mat C, Mat *out)
+{
+  Mat BC;
+  PetscFunctionBeginUser;
+  PetscCall(MatMatMult(B, C, MAT_INITIAL_MATRIX, PETSC_DEFAULT, &BC));
+  PetscCall(MatMatMult(A, BC, MAT_INITIAL_MATRIX, PETSC_DEFAULT, out));
+  PetscCall(MatDestroy(&BC));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode BuildReducedProblem(const Model &model, const SlidingEquilibrium &eq, ReducedProblem &rp)
+{
+  const ContactSet &cs = model.contacts;
+  const MPI_Comm    comm = model.comm();
+  const PetscInt    N    = model.Size();
+  const PetscReal   mu   = cs.mu;
+  PetscInt          rstart, rend;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(model.F, &rstart, &rend));
+  rp.active = eq.active;
+
+  // Pivots and reduced numbering.
+  std::vector<PetscInt> pivots;
+  for (PetscInt c : rp.active) pivots.push_back(cs.PivotDof(c));
+  std::vector<PetscInt> sorted = pivots;
+  std::sort(sorted.begin(), sorted.end());
+  auto reduced_index = [&](PetscInt j) {
+    return j - (PetscInt)(std::lower_bound(sorted.begin(), sorted.end(), j) - sorted.begin());
+  };
+  const PetscInt n_r       = N - (PetscInt)pivots.size();
+  rp.n_r                = n_r;
+
+  Triplets q, pm, db;
+  for (PetscInt j = rstart; j < rend; ++j)
+    if (!std::binary_search(sorted.begin(), sorted.end(), j)) q.Add(j, reduced_index(j), 1.0);
+  for (PetscInt i = rstart; i < rend; ++i) pm.Add(i, i, 1.0);
+  for (size_t a = 0; a < rp.active.size(); ++a) {
+    const PetscInt c  = rp.active[a];
+    const auto     hn = Column(cs, c, kN), ht = Column(cs, c, kT), hb = Column(cs, c, kB);
+    const PetscInt p  = pivots[a];
+    PetscReal      D  = 0;
+    for (auto &e : hn) D += e.second * e.second;
+    if (p >= rstart && p < rend)
+      for (auto &e : hn)
+        if (e.first != p) q.Add(p, reduced_index(e.first), -e.second / hn.at(p));
+    if (mu > 0) {
+      for (auto &ei : ht)
+        if (ei.first >= rstart && ei.first < rend)
+          for (auto &ej : hn) pm.Add(ei.first, ej.first, -mu * ei.second * ej.second / D);
+      if (cs.law == FrictionLaw::Planar) {
+        const PetscReal coef = mu * eq.N[c] / cs.Speed(c);
+        for (auto &ei : hb)
+          if (ei.first >= rstart && ei.first < rend)
+            for (auto &ej : hb) db.Add(ei.first, ej.first, coef * ei.second * ej.second);
+      }
+    }
+  }
+  MatH P, Db, Cd;
+  // The reduced problem gets its own balanced layout: following U's would leave a rank whose
+  // rows are all pivots with an empty share, which SLEPc 3.18's TOAR does not survive in parallel.
+  PetscCall(MatCreateFromTriplets(comm, rend - rstart, PETSC_DECIDE, N, n_r, q, rp.Q.out()));
+  PetscCall(MatCreateFromTriplets(comm, rend - rstart, rend - rstart, N, N, pm, P.out()));
+  PetscCall(MatCreateFromTriplets(comm, rend - rstart, rend - rstart, N, N, db, Db.out()));
+  PetscCall(MatTransposeMatMult(rp.Q, P, MAT_INITIAL_MATRIX, PETSC_DEFAULT, rp.L.out()));
+
+  // C + D_b, with either part possibly absent.
+  if (model.HasDamping()) {
+    PetscCall(MatDuplicate(model.C, MAT_COPY_VALUES, Cd.out()));
+    PetscCall(MatAXPY(Cd, 1.0, Db, DIFFERENT_NONZERO_PATTERN));
+  } else {
+    PetscCall(MatDuplicate(Db, MAT_COPY_VALUES, Cd.out()));
+  }
+  PetscCall(TripleProduct(rp.L, model.M, rp.Q, rp.Mr.out()));
+  PetscCall(TripleProduct(rp.L, Cd, rp.Q, rp.Cr.out()));
+  PetscCall(TripleProduct(rp.L, model.K, rp.Q, rp.Kr.out()));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal

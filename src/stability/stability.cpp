@@ -1,0 +1,291 @@
+#include "squeal/stability/stability.h"
+#include "squeal/core/errors.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace squeal {
+
+PetscReal StabilityResult::MaxOscillatorySigma(PetscInt *which) const
+{
+  PetscReal best = PETSC_NINFINITY;
+  if (which) *which = -1;
+  for (size_t i = 0; i < modes.size(); ++i)
+    if (modes[i].Oscillatory() && modes[i].sigma > best) {
+      best = modes[i].sigma;
+      if (which) *which = (PetscInt)i;
+    }
+  return best;
+}
+
+PetscErrorCode StabilitySolver::SetOptionsPrefix(const char *prefix)
+{
+  PetscFunctionBeginUser;
+  prefix_ = prefix ? prefix : "";
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::SetComputeModes(bool modes)
+{
+  PetscFunctionBeginUser;
+  modes_ = modes;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::SetFromOptions()
+{
+  ST  st;
+  KSP ksp;
+  PC  pc;
+  PetscBool modes = modes_ ? PETSC_TRUE : PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm_, prefix_.c_str(), "Linear stability of steady sliding", "StabilitySolver");
+  PetscCall(PetscOptionsBool("-modes", "Compute and write mode shapes", "StabilitySolver::SetComputeModes", modes, &modes, nullptr));
+  PetscCall(PetscOptionsName("-view", "Print the eigenvalue table (ascii viewer)", "StabilitySolver::View", nullptr));
+  PetscOptionsEnd();
+  modes_ = modes;
+
+  PetscCall(PEPCreate(comm_, pep_.out()));
+  PetscCall(PEPSetOptionsPrefix(pep_, prefix_.c_str()));
+  PetscCall(PEPSetType(pep_, PEPTOAR));
+  PetscCall(PEPSetProblemType(pep_, PEP_GENERAL));
+  PetscCall(PEPSetWhichEigenpairs(pep_, PEP_TARGET_MAGNITUDE));
+  PetscCall(PEPSetTarget(pep_, 0.0));
+  // ||K_r|| / ||M_r|| ~ omega^2 ~ 1e5 and more: scale lambda.
+  PetscCall(PEPSetScale(pep_, PEP_SCALE_SCALAR, PETSC_DECIDE, nullptr, nullptr, PETSC_DECIDE, PETSC_DECIDE));
+  PetscCall(PEPGetST(pep_, &st));
+  PetscCall(STSetType(st, STSINVERT));
+  PetscCall(STGetKSP(st, &ksp));
+  PetscCall(KSPSetType(ksp, KSPPREONLY));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCLU));
+  // K_r is non-symmetric and may be distributed: MUMPS serves both.
+  PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  PetscCall(PEPSetFromOptions(pep_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::NormaliseMode(const Model &model, Mode &m) const
+{
+  std::vector<PetscReal> re, im;
+  PetscFunctionBeginUser;
+  // Divide by the largest tangential contact component: frame-independent, and phi_t = 1 for the
+  // 3-DOF system as in the reference.
+  PetscCall(model.contacts.LocalComponents(m.phi_re, re));
+  PetscCall(model.contacts.LocalComponents(m.phi_im, im));
+  std::complex<PetscReal> z(0, 0);
+  for (size_t k = 0; k < re.size(); ++k) {
+    if (k % 3 == kN) continue;
+    const std::complex<PetscReal> w(re[k], im[k]);
+    if (std::abs(w) > std::abs(z)) z = w;
+  }
+  if (std::abs(z) == 0) {
+    PetscReal nrm;
+    PetscCall(VecNorm(m.phi_re, NORM_INFINITY, &nrm));
+    z = nrm > 0 ? nrm : 1.0;
+  }
+  // (re + i im) / z = ((a re + b im) + i (a im - b re)) / |z|^2
+  const PetscReal a = z.real(), b = z.imag(), s = std::norm(z);
+  VecH            tmp;
+  PetscCall(VecDuplicate(m.phi_re, tmp.out()));
+  PetscCall(VecAXPBYPCZ(tmp, a / s, b / s, 0.0, m.phi_re, m.phi_im));
+  PetscCall(VecAXPBY(m.phi_im, -b / s, a / s, m.phi_re));
+  PetscCall(VecCopy(tmp, m.phi_re));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::Solve(const Model &model, const SlidingEquilibrium &eq, StabilityResult &res)
+{
+  ReducedProblem rp;
+  PetscFunctionBeginUser;
+  if (!pep_) PetscCall(SetFromOptions());
+  PetscCall(BuildReducedProblem(model, eq, rp));
+  PetscCheck(rp.n_r > 0, comm_, kErrInput, "stability: every DOF is constrained by contact; nothing can vibrate");
+
+  Mat A[3] = {rp.Kr, rp.Cr, rp.Mr};
+  PetscCall(PEPSetOperators(pep_, 3, A));
+  PetscInt nev, ncv, mpd;
+  PetscCall(PEPGetDimensions(pep_, &nev, &ncv, &mpd));
+  // All 2 n_r eigenvalues of a small problem unless the user asked for fewer.
+  PetscBool nev_set;
+  PetscCall(PetscOptionsHasName(nullptr, prefix_.c_str(), "-pep_nev", &nev_set));
+  if (!nev_set) nev = PetscMin(2 * rp.n_r, 8);
+  nev = PetscMin(nev, 2 * rp.n_r);
+  PetscCall(PEPSetDimensions(pep_, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+  PetscCall(PEPSolve(pep_));
+  PEPConvergedReason reason;
+  PetscCall(PEPGetConvergedReason(pep_, &reason));
+  PetscCall(PEPGetConverged(pep_, &res.converged));
+  res.requested = nev;
+  PetscCheck(reason > 0 || res.converged > 0, comm_, PETSC_ERR_NOT_CONVERGED,
+             "stability: the eigensolver converged no eigenvalue (reason %s); try -%spep_max_it or -%spep_ncv",
+             PEPConvergedReasons[reason], prefix_.c_str(), prefix_.c_str());
+
+  VecH xr, xi;
+  PetscCall(MatCreateVecs(rp.Kr, xr.out(), nullptr));
+  PetscCall(VecDuplicate(xr, xi.out()));
+  res.modes.clear();
+  for (PetscInt i = 0; i < res.converged; ++i) {
+    PetscScalar kr, ki;
+    PetscCall(PEPGetEigenpair(pep_, i, &kr, &ki, xr, xi));
+    const PetscReal re = PetscRealPart(kr), im = PetscRealPart(ki);
+    if (im < 0) continue; // the conjugate of the previous one
+    Mode m;
+    m.sigma = re;
+    m.omega = std::abs(im) <= 1e-12 * std::hypot(re, im) ? 0.0 : im;
+    PetscCall(PEPComputeError(pep_, i, PEP_ERROR_BACKWARD, &m.error));
+    if (modes_) {
+      PetscCall(MatCreateVecs(rp.Q, nullptr, m.phi_re.out()));
+      PetscCall(VecDuplicate(m.phi_re, m.phi_im.out()));
+      PetscCall(MatMult(rp.Q, xr, m.phi_re));
+      if (m.omega > 0) PetscCall(MatMult(rp.Q, xi, m.phi_im));
+      else PetscCall(VecZeroEntries(m.phi_im));
+      PetscCall(NormaliseMode(model, m));
+    }
+    res.modes.push_back(std::move(m));
+  }
+  std::sort(res.modes.begin(), res.modes.end(), [](const Mode &a, const Mode &b) {
+    return a.omega != b.omega ? a.omega < b.omega : a.sigma < b.sigma;
+  });
+  res.unstable.clear();
+  for (size_t i = 0; i < res.modes.size(); ++i)
+    if (res.modes[i].Unstable()) res.unstable.push_back((PetscInt)i);
+  std::sort(res.unstable.begin(), res.unstable.end(),
+            [&](PetscInt a, PetscInt b) { return res.modes[a].sigma > res.modes[b].sigma; });
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  PetscCall(PetscViewerASCIIPrintf(viewer, "linear stability: %" PetscInt_FMT " eigenvalue(s) converged, %zu unstable\n",
+                                   res.converged, res.unstable.size()));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  mode   sigma (1/s)  omega (rad/s)     f (Hz)       T (s)      zeta  status     backward err\n"));
+  for (size_t i = 0; i < res.modes.size(); ++i) {
+    const Mode &m      = res.modes[i];
+    const char *status = m.Unstable() ? (m.Oscillatory() ? "UNSTABLE" : "DIVERGENT") : "stable";
+    if (m.Oscillatory())
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %4zu  %12.5f  %13.5f  %9.4f  %10.7f  %8.5f  %-9s  %9.2e\n", i, (double)m.sigma,
+                                       (double)m.omega, (double)m.Frequency(), (double)m.Period(), (double)m.DampingRatio(),
+                                       status, (double)m.error));
+    else
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %4zu  %12.5f  %13.5f  %9s  %10s  %8s  %-9s  %9.2e\n", i, (double)m.sigma, 0.0,
+                                       "-", "-", "-", status, (double)m.error));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::ViewFromOptions(const StabilityResult &res) const
+{
+  PetscViewer       viewer;
+  PetscViewerFormat format;
+  PetscBool         flg;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetViewer(comm_, nullptr, prefix_.c_str(), "-view", &viewer, &format, &flg));
+  if (flg) {
+    PetscCall(PetscViewerPushFormat(viewer, format));
+    PetscCall(View(res, viewer));
+    PetscCall(PetscViewerPopFormat(viewer));
+    PetscCall(PetscViewerDestroy(&viewer));
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
+
+#include "squeal/io/h5.h"
+
+namespace squeal {
+
+namespace {
+// Gathers a distributed vector on rank 0 (empty elsewhere).
+PetscErrorCode GatherToZero(Vec v, std::vector<PetscReal> &out)
+{
+  VecScatter         sc;
+  Vec                z;
+  const PetscScalar *a;
+  PetscInt           n;
+  PetscFunctionBeginUser;
+  PetscCall(VecScatterCreateToZero(v, &sc, &z));
+  PetscCall(VecScatterBegin(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetLocalSize(z, &n));
+  PetscCall(VecGetArrayRead(z, &a));
+  out.assign(n, 0.0);
+  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(z, &a));
+  PetscCall(VecDestroy(&z));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode WriteStability(const StabilityResult &res, io::H5Writer &out)
+{
+  const hsize_t k = res.modes.size();
+  PetscFunctionBeginUser;
+  std::vector<PetscReal> ev, f, T, zeta, err;
+  for (const Mode &m : res.modes) {
+    ev.insert(ev.end(), {m.sigma, m.omega});
+    f.push_back(m.Frequency());
+    T.push_back(m.Period());
+    zeta.push_back(m.DampingRatio());
+    err.push_back(m.error);
+  }
+  PetscCall(out.WriteArray("/stability/eigenvalues", {k, 2}, ev.data()));
+  PetscCall(out.WriteArray("/stability/frequency", {k}, f.data()));
+  PetscCall(out.WriteArray("/stability/period", {k}, T.data()));
+  PetscCall(out.WriteArray("/stability/damping_ratio", {k}, zeta.data()));
+  PetscCall(out.WriteArray("/stability/backward_error", {k}, err.data()));
+  PetscCall(out.WriteIntArray("/stability/unstable", {(hsize_t)res.unstable.size()}, res.unstable.data()));
+  PetscCall(out.WriteAttribute("/stability/eigenvalues", "units", "1/s"));
+  PetscCall(out.WriteAttribute("/stability/eigenvalues", "columns", "sigma (re), omega (im); omega >= 0 member of each pair"));
+  PetscCall(out.WriteAttribute("/stability/frequency", "units", "Hz"));
+  PetscCall(out.WriteAttribute("/stability/period", "units", "s"));
+  PetscCall(out.WriteAttribute("/stability/damping_ratio", "definition", "-sigma/|lambda|"));
+  PetscCall(out.WriteAttribute("/stability/unstable", "order", "most unstable first (indices into eigenvalues)"));
+  if (k > 0 && res.modes[0].phi_re) {
+    PetscInt N;
+    PetscCall(VecGetSize(res.modes[0].phi_re, &N));
+    std::vector<PetscReal> re(N * k), im(N * k), col;
+    for (hsize_t j = 0; j < k; ++j) {
+      PetscCall(GatherToZero(res.modes[j].phi_re, col));
+      for (size_t i = 0; i < col.size(); ++i) re[i * k + j] = col[i];
+      PetscCall(GatherToZero(res.modes[j].phi_im, col));
+      for (size_t i = 0; i < col.size(); ++i) im[i * k + j] = col[i];
+    }
+    PetscCall(out.WriteArray("/stability/modes/re", {(hsize_t)N, k}, re.data()));
+    PetscCall(out.WriteArray("/stability/modes/im", {(hsize_t)N, k}, im.data()));
+    PetscCall(out.WriteAttribute("/stability/modes", "normalisation", "largest tangential contact component = 1"));
+    PetscCall(out.WriteAttribute("/stability/modes", "layout", "[dof][mode]"));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode WriteEquilibrium(const Model &model, const SlidingEquilibrium &eq, io::H5Writer &out)
+{
+  const ContactSet &cs = model.contacts;
+  PetscFunctionBeginUser;
+  PetscCall(out.WriteVec("/equilibrium", eq.U));
+  PetscCall(out.WriteVec("/equilibrium", eq.R));
+  std::vector<PetscReal> r(3 * cs.Size());
+  for (PetscInt c = 0; c < cs.Size(); ++c) {
+    r[3 * c + kT] = eq.mu * eq.N[c];
+    r[3 * c + kB] = 0;
+    r[3 * c + kN] = eq.N[c];
+  }
+  PetscCall(out.WriteArray("/equilibrium/r", {(hsize_t)cs.Size(), 3}, r.data()));
+  PetscCall(out.WriteArray("/equilibrium/N", {(hsize_t)cs.Size()}, eq.N.data()));
+  PetscCall(out.WriteIntArray("/equilibrium/active", {(hsize_t)eq.active.size()}, eq.active.data()));
+  PetscCall(out.WriteAttribute("/equilibrium/U", "units", "m"));
+  PetscCall(out.WriteAttribute("/equilibrium/R", "units", "N"));
+  PetscCall(out.WriteAttribute("/equilibrium/r", "units", "N"));
+  PetscCall(out.WriteAttribute("/equilibrium/r", "columns", "t, b, n (local frame of each point)"));
+  PetscCall(out.WriteAttribute("/equilibrium", "mu", eq.mu));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal

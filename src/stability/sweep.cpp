@@ -1,0 +1,227 @@
+#include "squeal/stability/sweep.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+#include "squeal/model/builders.h"
+#include "squeal/stability/equilibrium.h"
+#include "squeal/stability/stability.h"
+
+#include <cmath>
+#include <limits>
+
+namespace squeal {
+
+namespace {
+
+constexpr PetscReal kNaN = std::numeric_limits<PetscReal>::quiet_NaN();
+
+// Everything one rank needs to solve grid points on its own.
+struct PointSolver {
+  Model             model{PETSC_COMM_SELF};
+  EquilibriumSolver eqs{PETSC_COMM_SELF};
+  StabilitySolver   stab{PETSC_COMM_SELF};
+
+  PetscErrorCode Setup()
+  {
+    PetscFunctionBeginUser;
+    PetscCall(ModelCreateFromOptions(PETSC_COMM_SELF, model));
+    PetscCall(eqs.SetFromOptions());
+    PetscCall(stab.SetComputeModes(false));
+    PetscCall(stab.SetFromOptions());
+    PetscCall(stab.SetComputeModes(false));
+    PetscFunctionReturn(0);
+  }
+
+  // Solves one point; a point without steady sliding is a result (failed), not an error.
+  PetscErrorCode Solve(PetscReal mu, PetscReal V, StabilityResult &res, bool *ok)
+  {
+    PetscFunctionBeginUser;
+    model.contacts.mu = mu;
+    model.contacts.V  = V;
+    SlidingEquilibrium eq;
+    PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+    PetscErrorCode ierr = eqs.Solve(model, eq);
+    if (!ierr) ierr = stab.Solve(model, eq, res);
+    PetscCall(PetscPopErrorHandler());
+    *ok = !ierr;
+    PetscFunctionReturn(0);
+  }
+};
+
+} // namespace
+
+PetscReal SweepResult::MaxSigma(size_t iv, size_t imu) const
+{
+  PetscReal best = PETSC_NINFINITY;
+  for (PetscInt s = 0; s < k; ++s) {
+    const PetscReal *e = &eigenvalues[(((iv * mu.size()) + imu) * k + s) * 2];
+    if (!std::isnan(e[0]) && e[1] > 0) best = PetscMax(best, e[0]);
+  }
+  return best;
+}
+
+PetscErrorCode SweepSolver::SetOptionsPrefix(const char *prefix)
+{
+  PetscFunctionBeginUser;
+  prefix_ = prefix ? prefix : "";
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SweepSolver::SetFromOptions(PetscReal default_V)
+{
+  PetscFunctionBeginUser;
+  v_min_ = v_max_ = default_V;
+  PetscOptionsBegin(comm_, prefix_.c_str(), "Stability map over mu and V", "SweepSolver");
+  SquealOptionsReal("-mu_min", "Smallest friction coefficient", "SweepSolver", &mu_min_, Range::NonNegative());
+  SquealOptionsReal("-mu_max", "Largest friction coefficient", "SweepSolver", &mu_max_, Range::NonNegative());
+  PetscCall(PetscOptionsInt("-mu_n", "Number of mu values (uniform grid)", "SweepSolver", mu_n_, &mu_n_, nullptr));
+  SquealOptionsReal("-v_min", "Smallest sliding speed (m/s); default: the model's V", "SweepSolver", &v_min_, Range::Positive());
+  SquealOptionsReal("-v_max", "Largest sliding speed (m/s); default: -sweep_v_min", "SweepSolver", &v_max_, Range::Positive());
+  PetscCall(PetscOptionsInt("-v_n", "Number of V values (uniform grid)", "SweepSolver", v_n_, &v_n_, nullptr));
+  SquealOptionsReal("-bisect_tol", "Refine the critical mu by bisection to this width (0: grid interpolation only)",
+                    "SweepSolver", &bisect_tol_, Range::NonNegative());
+  PetscCall(PetscOptionsBool("-monitor", "Print progress (points done) on rank 0", "SweepSolver", monitor_, &monitor_, nullptr));
+  PetscCall(PetscOptionsName("-view", "Print the critical mu table (ascii viewer)", "SweepSolver::View", nullptr));
+  PetscOptionsEnd();
+  PetscCheck(mu_n_ >= 1 && v_n_ >= 1, comm_, kErrInput, "sweep: -%smu_n and -%sv_n must be >= 1", prefix_.c_str(), prefix_.c_str());
+  PetscCheck(mu_max_ >= mu_min_ && v_max_ >= v_min_, comm_, kErrInput, "sweep: empty range (max < min)");
+  if (v_n_ == 1) v_max_ = v_min_;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SweepSolver::Solve(SweepResult &res)
+{
+  PetscMPIInt rank, size;
+  PointSolver ps;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  PetscCall(ps.Setup());
+  auto grid = [](PetscReal a, PetscReal b, PetscInt n) {
+    std::vector<PetscReal> g(n);
+    for (PetscInt i = 0; i < n; ++i) g[i] = n == 1 ? a : a + (b - a) * i / (n - 1);
+    return g;
+  };
+  res.mu               = grid(mu_min_, mu_max_, mu_n_);
+  res.V                = grid(v_min_, v_max_, v_n_);
+  const PetscInt npts  = mu_n_ * v_n_;
+
+  // Solve the local share; keep results until the slot count is known everywhere.
+  std::vector<std::vector<PetscReal>> local(npts);
+  std::vector<PetscInt>               failed(npts, 0);
+  PetscInt                            kmax = 0, done = 0;
+  for (PetscInt p = rank; p < npts; p += size) {
+    StabilityResult sr;
+    bool            ok;
+    PetscCall(ps.Solve(res.mu[p % mu_n_], res.V[p / mu_n_], sr, &ok));
+    if (!ok) failed[p] = 1;
+    else {
+      for (const Mode &m : sr.modes) local[p].insert(local[p].end(), {m.sigma, m.omega});
+      kmax = PetscMax(kmax, (PetscInt)sr.modes.size());
+    }
+    if (monitor_ && rank == 0 && (++done % 10 == 0 || p + size >= npts))
+      PetscCall(PetscPrintf(PETSC_COMM_SELF, "sweep: rank 0 solved %" PetscInt_FMT " of its %" PetscInt_FMT " points\n", done,
+                            (npts - 1) / size + 1));
+  }
+  PetscCallMPI(MPI_Allreduce(&kmax, &res.k, 1, MPIU_INT, MPI_MAX, comm_));
+  res.failed.assign(npts, 0);
+  PetscCallMPI(MPI_Allreduce(failed.data(), res.failed.data(), (int)npts, MPIU_INT, MPI_MAX, comm_));
+  // Sum of disjoint contributions; slots a point does not fill are marked and set to NaN after.
+  std::vector<PetscReal> table(npts * res.k * 2, 0.0), filled(npts * res.k, 0.0);
+  for (PetscInt p = 0; p < npts; ++p)
+    for (size_t s = 0; s < local[p].size() / 2; ++s) {
+      table[(p * res.k + s) * 2]     = local[p][2 * s];
+      table[(p * res.k + s) * 2 + 1] = local[p][2 * s + 1];
+      filled[p * res.k + s]          = 1;
+    }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, table.data(), (int)table.size(), MPIU_REAL, MPIU_SUM, comm_));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, filled.data(), (int)filled.size(), MPIU_REAL, MPIU_SUM, comm_));
+  for (size_t s = 0; s < filled.size(); ++s)
+    if (filled[s] == 0) table[2 * s] = table[2 * s + 1] = kNaN;
+  res.eigenvalues = std::move(table);
+
+  // Critical mu per V: bracket on the grid, then bisection on the owning rank.
+  std::vector<PetscReal> crit(v_n_, 0.0), freq(v_n_, 0.0);
+  for (PetscInt iv = rank; iv < v_n_; iv += size) {
+    crit[iv] = freq[iv] = kNaN;
+    for (PetscInt i = 0; i + 1 < mu_n_; ++i) {
+      const PetscReal s0 = res.MaxSigma(iv, i), s1 = res.MaxSigma(iv, i + 1);
+      if (!(s0 <= 0 && s1 > 0)) continue;
+      PetscReal a = res.mu[i], b = res.mu[i + 1], fa = s0, fb = s1;
+      PetscReal f_at = kNaN;
+      while (bisect_tol_ > 0 && b - a > bisect_tol_) {
+        const PetscReal m = 0.5 * (a + b);
+        StabilityResult sr;
+        bool            ok;
+        PetscCall(ps.Solve(m, res.V[iv], sr, &ok));
+        if (!ok) break;
+        PetscInt        w;
+        const PetscReal sm = sr.MaxOscillatorySigma(&w);
+        if (w >= 0) f_at = sr.modes[w].Frequency();
+        if (sm > 0) b = m, fb = sm;
+        else a = m, fa = sm;
+      }
+      crit[iv] = (std::isfinite(fa) && std::isfinite(fb) && fb != fa) ? a + (b - a) * (-fa) / (fb - fa) : 0.5 * (a + b);
+      if (std::isnan(f_at)) { // interpolate the frequency of the most unstable mode on the grid
+        StabilityResult sr;
+        bool            ok;
+        PetscCall(ps.Solve(crit[iv], res.V[iv], sr, &ok));
+        PetscInt w;
+        sr.MaxOscillatorySigma(&w);
+        if (ok && w >= 0) f_at = sr.modes[w].Frequency();
+      }
+      freq[iv] = f_at;
+      break;
+    }
+  }
+  // NaN survives the sum only from the owner; others contribute 0.
+  for (PetscInt iv = 0; iv < v_n_; ++iv)
+    if ((iv % size) != rank) crit[iv] = freq[iv] = 0.0;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, crit.data(), (int)v_n_, MPIU_REAL, MPIU_SUM, comm_));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, freq.data(), (int)v_n_, MPIU_REAL, MPIU_SUM, comm_));
+  res.critical_mu           = crit;
+  res.coalescence_frequency = freq;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SweepSolver::View(const SweepResult &res, PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  PetscInt nfail = 0;
+  for (PetscInt f : res.failed) nfail += f;
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "stability map: %zu mu value(s) in [%g, %g] x %zu V value(s) in [%g, %g] m/s, %" PetscInt_FMT
+                                   " point(s) without steady sliding\n",
+                                   res.mu.size(), (double)res.mu.front(), (double)res.mu.back(), res.V.size(),
+                                   (double)res.V.front(), (double)res.V.back(), nfail));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "      V (m/s)   critical mu   coalescence f (Hz)\n"));
+  for (size_t iv = 0; iv < res.V.size(); ++iv) {
+    if (std::isnan(res.critical_mu[iv]))
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %11.5g   %11s   %18s\n", (double)res.V[iv], "none", "-"));
+    else
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %11.5g   %11.6f   %18.4f\n", (double)res.V[iv], (double)res.critical_mu[iv],
+                                       (double)res.coalescence_frequency[iv]));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SweepSolver::Write(const SweepResult &res, io::H5Writer &out) const
+{
+  PetscFunctionBeginUser;
+  PetscCall(out.WriteArray("/sweep/mu", {(hsize_t)res.mu.size()}, res.mu.data()));
+  PetscCall(out.WriteArray("/sweep/V", {(hsize_t)res.V.size()}, res.V.data()));
+  PetscCall(out.WriteArray("/sweep/eigenvalues", {(hsize_t)res.V.size(), (hsize_t)res.mu.size(), (hsize_t)res.k, 2},
+                           res.eigenvalues.data()));
+  PetscCall(out.WriteIntArray("/sweep/failed", {(hsize_t)res.V.size(), (hsize_t)res.mu.size()}, res.failed.data()));
+  PetscCall(out.WriteAttribute("/sweep/V", "units", "m/s"));
+  PetscCall(out.WriteAttribute("/sweep/eigenvalues", "units", "1/s"));
+  PetscCall(out.WriteAttribute("/sweep/eigenvalues", "layout", "[V][mu][slot][re, im], omega >= 0 members, NaN: absent"));
+  PetscCall(out.WriteAttribute("/sweep", "critical_mu", res.critical_mu));
+  PetscCall(out.WriteAttribute("/sweep", "coalescence_frequency", res.coalescence_frequency));
+  PetscCall(out.WriteAttribute("/sweep", "coalescence_frequency_units", "Hz"));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
