@@ -85,6 +85,8 @@ PetscErrorCode EquilibriumSolver::SolveBordered(const Model &model, const std::v
     PetscCall(VecRestoreArray(b, &bb));
     PetscCall(VecRestoreArrayRead(model.F, &f));
   }
+  // A new matrix every pass, and its size changes when points are released: start afresh.
+  PetscCall(KSPReset(ksp_));
   PetscCall(KSPSetOperators(ksp_, A, A));
   PetscCall(KSPSolve(ksp_, b, x));
   KSPConvergedReason reason;
