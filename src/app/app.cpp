@@ -118,8 +118,9 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(perr);
 
   // Read every component's options up front (cheap) so that a typo is caught before hours of work.
-  Model model(comm);
-  PetscCall(ModelCreateFromOptions(comm, model));
+  Model       model(comm);
+  std::string export_dir;
+  PetscCall(ModelCreateFromOptions(comm, model, &export_dir));
   EquilibriumSolver eqs(comm);
   PetscCall(eqs.SetFromOptions());
   StabilitySolver stab(comm);
@@ -130,6 +131,10 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(CheckUnusedOptions(comm, true));
 
   PetscCall(model.View(PETSC_VIEWER_STDOUT_(comm)));
+  if (!export_dir.empty()) {
+    PetscCall(model.Export(export_dir.c_str(), "bin"));
+    PetscCall(PetscPrintf(comm, "model written to %s/ (M.bin, K.bin, C.bin, F.bin, contacts.txt)\n", export_dir.c_str()));
+  }
   io::H5Writer out;
   PetscCall(out.Open(comm, output));
   PetscCall(WriteModelInfo(model, out));

@@ -68,18 +68,6 @@ PetscErrorCode OpenForWriting(MPI_Comm comm, const char *path, FILE **fp)
   PetscFunctionReturn(0);
 }
 
-// Without SkipInfo PETSc writes a ".info" file next to the matrix, and reads options from a stale one.
-PetscErrorCode OpenBinary(MPI_Comm comm, const char *path, PetscFileMode mode, PetscViewer *viewer)
-{
-  PetscFunctionBeginUser;
-  PetscCall(PetscViewerCreate(comm, viewer));
-  PetscCall(PetscViewerSetType(*viewer, PETSCVIEWERBINARY));
-  PetscCall(PetscViewerFileSetMode(*viewer, mode));
-  PetscCall(PetscViewerBinarySetSkipInfo(*viewer, PETSC_TRUE));
-  PetscCall(PetscViewerFileSetName(*viewer, path));
-  PetscFunctionReturn(0);
-}
-
 // MatLoad would only say "Not a matrix object in file", without naming the file.
 PetscErrorCode CheckBinaryHeader(MPI_Comm comm, const char *path)
 {
@@ -316,7 +304,7 @@ PetscErrorCode MatLoadFromFile(MPI_Comm comm, const char *path, Mat *A)
   }
   PetscCall(CheckReadable(comm, path));
   PetscCall(CheckBinaryHeader(comm, path));
-  PetscCall(OpenBinary(comm, path, FILE_MODE_READ, &viewer));
+  PetscCall(OpenBinaryViewer(comm, path, FILE_MODE_READ, &viewer));
   PetscCall(MatCreate(comm, &B));
   PetscCall(MatSetType(B, MATAIJ));
   PetscCall(MatLoad(B, viewer));
@@ -338,9 +326,21 @@ PetscErrorCode MatSaveToFile(Mat A, const char *path)
   PetscCall(PetscObjectGetComm((PetscObject)A, &comm));
   PetscCall(OpenForWriting(comm, path, &fp));
   if (fp) std::fclose(fp);
-  PetscCall(OpenBinary(comm, path, FILE_MODE_WRITE, &viewer));
+  PetscCall(OpenBinaryViewer(comm, path, FILE_MODE_WRITE, &viewer));
   PetscCall(MatView(A, viewer));
   PetscCall(PetscViewerDestroy(&viewer));
+  PetscFunctionReturn(0);
+}
+
+// Without SkipInfo PETSc writes a ".info" file next to the data, and reads options from a stale one.
+PetscErrorCode OpenBinaryViewer(MPI_Comm comm, const char *path, PetscFileMode mode, PetscViewer *viewer)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscViewerCreate(comm, viewer));
+  PetscCall(PetscViewerSetType(*viewer, PETSCVIEWERBINARY));
+  PetscCall(PetscViewerFileSetMode(*viewer, mode));
+  PetscCall(PetscViewerBinarySetSkipInfo(*viewer, PETSC_TRUE));
+  PetscCall(PetscViewerFileSetName(*viewer, path));
   PetscFunctionReturn(0);
 }
 

@@ -244,7 +244,7 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
   PetscCall(VecCreate(comm, model.F.out()));
   PetscCall(PetscObjectSetName((PetscObject)(Vec)model.F, "F"));
   if (h5) PetscCall(PetscViewerHDF5Open(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
-  else PetscCall(PetscViewerBinaryOpen(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
+  else PetscCall(io::OpenBinaryViewer(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
   PetscCall(VecLoad(model.F, viewer));
   PetscCall(PetscViewerDestroy(&viewer));
   PetscInt nF;
@@ -269,7 +269,7 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model)
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir)
 {
   const char *const types[] = {"three_dof", "chain", "file"};
   const char *const laws[]  = {"planar", "rectilinear"};
@@ -352,7 +352,7 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model)
   case 1: PetscCall(BuildChain(comm, ch, model)); break;
   default: PetscCall(BuildFromFiles(comm, fs, model)); break;
   }
-  if (exportdir[0]) PetscCall(model.Export(exportdir, "bin"));
+  if (export_dir) *export_dir = exportdir;
   PetscFunctionReturn(0);
 }
 

@@ -134,7 +134,7 @@ PetscErrorCode Model::Export(const char *dir, const char *format) const
   PetscCall(io::MatSaveToFile(M, (d + "M" + ext).c_str()));
   PetscCall(io::MatSaveToFile(K, (d + "K" + ext).c_str()));
   if (C) PetscCall(io::MatSaveToFile(C, (d + "C" + ext).c_str()));
-  PetscCall(PetscViewerBinaryOpen(comm_, (d + "F.bin").c_str(), FILE_MODE_WRITE, &v));
+  PetscCall(io::OpenBinaryViewer(comm_, (d + "F.bin").c_str(), FILE_MODE_WRITE, &v));
   PetscCall(VecView(F, v));
   PetscCall(PetscViewerDestroy(&v));
   PetscCall(WriteContactTable(comm_, (d + "contacts.txt").c_str(), contacts));

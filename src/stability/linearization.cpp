@@ -55,6 +55,12 @@ PetscErrorCode BuildReducedProblem(const Model &model, const SlidingEquilibrium 
   };
   const PetscInt n_r       = N - (PetscInt)pivots.size();
   rp.n_r                = n_r;
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCheck(n_r >= size, comm, kErrInput,
+             "stability: the reduced problem has %" PetscInt_FMT " DOF(s), fewer than the %d MPI ranks; run on at most %" PetscInt_FMT
+             " ranks",
+             n_r, size, n_r);
 
   Triplets q, pm, db;
   for (PetscInt j = rstart; j < rend; ++j)

@@ -80,7 +80,6 @@ PetscErrorCode SweepSolver::SetFromOptions(PetscReal default_V)
   SquealOptionsReal("-bisect_tol", "Refine the critical mu by bisection to this width (0: grid interpolation only)",
                     "SweepSolver", &bisect_tol_, Range::NonNegative());
   PetscCall(PetscOptionsBool("-monitor", "Print progress (points done) on rank 0", "SweepSolver", monitor_, &monitor_, nullptr));
-  PetscCall(PetscOptionsName("-view", "Print the critical mu table (ascii viewer)", "SweepSolver::View", nullptr));
   PetscOptionsEnd();
   PetscCheck(mu_n_ >= 1 && v_n_ >= 1, comm_, kErrInput, "sweep: -%smu_n and -%sv_n must be >= 1", prefix_.c_str(), prefix_.c_str());
   PetscCheck(mu_max_ >= mu_min_ && v_max_ >= v_min_, comm_, kErrInput, "sweep: empty range (max < min)");

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <petscmat.h>
+#include <petscviewer.h>
 
 namespace squeal::io {
 
@@ -24,5 +25,8 @@ PetscErrorCode MatLoadFromFile(MPI_Comm comm, const char *path, Mat *A);
 
 // ".mtx" (any case) -> MatViewMatrixMarket; anything else -> PETSc binary (no ".info" file).
 PetscErrorCode MatSaveToFile(Mat A, const char *path);
+
+// A PETSc binary viewer that neither writes nor reads the ".info" side file.
+PetscErrorCode OpenBinaryViewer(MPI_Comm comm, const char *path, PetscFileMode mode, PetscViewer *viewer);
 
 } // namespace squeal::io

@@ -54,7 +54,9 @@ PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set
 PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactSet &set);
 
 // Reads -model_type (three_dof | chain | file) and the family's options, builds and validates.
-// Options: -model_* for the structure, -contact_mu, -contact_v, -contact_friction.
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model);
+// Options: -model_* for the structure, -contact_mu, -contact_v, -contact_friction. The directory
+// given by -model_export (empty if none) is returned in export_dir; writing it is the caller's
+// choice (a sweep builds one model per rank and must not write it from every rank).
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir = nullptr);
 
 } // namespace squeal

@@ -31,7 +31,7 @@ class SweepSolver {
 public:
   explicit SweepSolver(MPI_Comm comm) : comm_(comm) {}
   PetscErrorCode SetOptionsPrefix(const char *prefix);
-  // -sweep_mu_min/max/n, -sweep_v_min/max/n, -sweep_bisect_tol, -sweep_view, -sweep_monitor.
+  // -sweep_mu_min/max/n, -sweep_v_min/max/n, -sweep_bisect_tol, -sweep_monitor.
   PetscErrorCode SetFromOptions(PetscReal default_V);
   PetscErrorCode Solve(SweepResult &res);
   PetscErrorCode View(const SweepResult &res, PetscViewer viewer) const;
