@@ -1,6 +1,7 @@
 #include "squeal/app/app.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
+#include "squeal/integration/transient.h"
 #include "squeal/io/h5.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/equilibrium.h"
@@ -19,11 +20,10 @@ const char kHelp[] = "squeal: friction-induced self-excited vibration (brake squ
 
 namespace {
 
-const char *const kAnalyses[]   = {"stability", "sweep"};
-const char *const kLaterAnalyses[] = {"transient", "energy", "shooting"};
+const char *const kLaterAnalyses[] = {"energy", "shooting"};
 
 struct Request {
-  bool stability = false, sweep = false;
+  bool stability = false, sweep = false, transient = false;
 };
 
 PetscErrorCode ReadScene(int argc, char **argv)
@@ -48,9 +48,10 @@ PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
     const std::string a = names[i];
     if (a == "stability") req.stability = true;
     else if (a == "sweep") req.sweep = true;
+    else if (a == "transient") req.transient = req.stability = true; // starts from a mode
     else {
       const bool later = std::any_of(std::begin(kLaterAnalyses), std::end(kLaterAnalyses), [&](const char *x) { return a == x; });
-      SETERRQ(PETSC_COMM_WORLD, kErrInput, "%s analysis '%s' in -analyses (available: stability, sweep)",
+      SETERRQ(PETSC_COMM_WORLD, kErrInput, "%s analysis '%s' in -analyses (available: stability, sweep, transient)",
               later ? "not yet implemented:" : "unknown", a.c_str());
     }
   }
@@ -90,18 +91,19 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscInt       nnames = 16;
   PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE;
   Request        req;
-  PetscLogStage  st_eq, st_stab, st_sweep;
+  PetscLogStage  st_eq, st_stab, st_sweep, st_transient;
   PetscFunctionBeginUser;
   PetscCall(ReadScene(argc, argv));
   PetscCall(PetscOptionsHasHelp(nullptr, &help));
   PetscCall(PetscLogStageRegister("Equilibrium", &st_eq));
   PetscCall(PetscLogStageRegister("Stability", &st_stab));
   PetscCall(PetscLogStageRegister("Sweep", &st_sweep));
+  PetscCall(PetscLogStageRegister("Transient", &st_transient));
 
   const std::string default_output = DefaultOutput();
   PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
   PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
-  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep", "RunApp", names, &nnames, &set));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient", "RunApp", names, &nnames, &set));
   std::snprintf(output, sizeof(output), "%s", default_output.c_str());
   PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
                                sizeof(output), nullptr));
@@ -127,6 +129,10 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(stab.SetFromOptions());
   SweepSolver sweep(comm);
   PetscCall(sweep.SetFromOptions(model.contacts.V));
+  ThetaIntegrator theta(comm);
+  PetscCall(theta.SetFromOptions());
+  TransientAnalysis transient(comm);
+  PetscCall(transient.SetFromOptions());
   if (help) PetscFunctionReturn(0);
   PetscCall(CheckUnusedOptions(comm, true));
 
@@ -160,6 +166,17 @@ PetscErrorCode RunApp(int argc, char **argv)
       const Mode &m = res.modes[i];
       PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,
                             (double)m.Frequency(), (double)m.Period(), (double)m.sigma));
+    }
+    if (req.transient) {
+      TransientResult tr;
+      PetscCall(PetscLogStagePush(st_transient));
+      PetscErrorCode terr = transient.Run(model, eq, res, theta, tr);
+      PetscCall(PetscLogStagePop());
+      // Whatever was recorded is written, also when the run stopped early.
+      PetscCall(transient.Write(tr, out));
+      PetscCall(terr);
+      PetscCall(theta.View(PETSC_VIEWER_STDOUT_(comm)));
+      PetscCall(transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
     }
   }
   if (req.sweep) {

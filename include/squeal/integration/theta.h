@@ -1,0 +1,94 @@
+// Non-smooth theta-method with impulses and the modified normal displacement (method.md §5),
+// split like Siconos' Moreau-Jean step: free step, one-step contact problem, update.
+//
+// Once per step size h (SetUp):
+//   (S1) A = M + h theta C + h^2 theta^2 K (factorised),  B = M - h(1-theta) C - h^2 theta(1-theta) K
+//   (S2) Y = A^-1 H (3 n_c solves),  W = H^T Y (Delassus, dense, replicated)
+//   (S3) rho_n,c = 1/(h^2 W_nn,cc), rho_t,c = 1/(h W_tt,cc)   (times -theta_rho_scale)
+// Every step:
+//   (S4) A v_f = B dU^i - h K U^i + h F
+//   (S5) w_f = H^T v_f,  g~^i_n = H_n^T (U^i + h(1-theta) dU^i) + g0
+//   (S6-7) local fixed point on r (LocalContactSolver)
+//   (S8) dU^{i+1} = v_f + h Y r,   (S9) U^{i+1} = U^i + h (theta dU^{i+1} + (1-theta) dU^i)
+// Two back ends with identical equations: "dense" (one rank, N <= -theta_dense_max; A^-1 B,
+// A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written loop
+// would do) and "sparse" (distributed AIJ, A factorised once by KSP/PC, MUMPS LU by default,
+// options -theta_ksp_*, -theta_pc_*). Nothing is allocated per step or per fixed-point pass.
+#pragma once
+
+#include "squeal/contact/local_solver.h"
+#include "squeal/core/handle.h"
+#include "squeal/model/model.h"
+
+#include <Eigen/Dense>
+
+#include <string>
+
+namespace squeal {
+
+struct StepInfo {
+  LocalSolveInfo contact;
+};
+
+class ThetaIntegrator {
+public:
+  explicit ThetaIntegrator(MPI_Comm comm) : comm_(comm) {}
+  PetscErrorCode SetOptionsPrefix(const char *prefix);
+  PetscErrorCode SetTheta(PetscReal theta);
+  PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it);
+  PetscErrorCode SetRhoScale(PetscReal s);
+  PetscErrorCode SetDenseMax(PetscInt n);
+  // -theta_theta, -theta_fp_tol, -theta_fp_max_it, -theta_rho_scale, -theta_dense_max, -theta_ksp_*.
+  PetscErrorCode SetFromOptions();
+  // (S1)-(S3) for step size h; call again whenever h changes.
+  PetscErrorCode SetUp(const Model &model, PetscReal h);
+  // One step in place: (U, dU) at t_i -> t_{i+1}; r: local reactions (3 n_c, warm start in, result out).
+  PetscErrorCode Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info);
+  // Energies and the work done over a step from (U0, dU0) to (U1, dU1) with reaction r:
+  // damping  h ub^T C ub, reactions h ub^T H r, load h ub^T F, with ub = (U1 - U0)/h.
+  PetscErrorCode Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic);
+  PetscErrorCode Work(Vec U0, Vec U1, const Eigen::VectorXd &r, PetscReal *damping, PetscReal *reactions, PetscReal *load);
+  // Local quantities x -> H^T x (replicated), e.g. gaps from U or contact velocities from dU.
+  PetscErrorCode Local(Vec x, Eigen::VectorXd &out);
+  PetscErrorCode View(PetscViewer viewer) const;
+
+  PetscReal                 Theta() const { return theta_; }
+  PetscReal                 StepSize() const { return h_; }
+  bool                      Dense() const { return dense_; }
+  const Eigen::MatrixXd    &Delassus() const { return W_; }
+  const LocalContactSolver &Contact() const { return local_; }
+  const Model              &GetModel() const { return *model_; }
+  const std::string        &Prefix() const { return prefix_; }
+
+private:
+  PetscErrorCode SetUpDense();
+  PetscErrorCode SetUpSparse();
+  PetscErrorCode ToLocal(Vec x, Eigen::VectorXd &out); // sparse back end: H^T x gathered
+
+  MPI_Comm     comm_;
+  std::string  prefix_   = "theta_";
+  PetscReal    theta_    = 0.5, h_ = 0, fp_tol_ = 1e-12, rho_scale_ = 1.0, r_ref_ = 1.0;
+  PetscInt     fp_max_it_ = 500, dense_max_ = 2000;
+  bool         dense_     = true;
+  const Model *model_     = nullptr;
+  PetscInt     n_ = 0, nc_ = 0;
+
+  LocalContactSolver local_;
+  Eigen::MatrixXd    W_;
+  Eigen::VectorXd    g0_, wf_, gap_, rhat_;
+
+  // dense back end
+  Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
+  Eigen::VectorXd p3_, Fd_, vf_, dU0_;
+
+  // sparse back end
+  KSPH       ksp_;
+  MatH       A_, B_, H_, Yd_;
+  VecH       rhs_, vf_s_, tmp_, loc_, rloc_, loc_all_;
+  VecScatter to_all_ = nullptr;
+
+public:
+  ~ThetaIntegrator();
+};
+
+} // namespace squeal

@@ -1,0 +1,376 @@
+#include "squeal/integration/theta.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+#include "squeal/core/sparse.h"
+
+#include <cmath>
+
+namespace squeal {
+
+namespace {
+
+// Full copy of a (small) distributed matrix on every rank, for the dense back end (one rank).
+Eigen::MatrixXd DenseCopy(Mat A, PetscInt n)
+{
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(n, n);
+  if (!A) return D;
+  for (PetscInt i = 0; i < n; ++i) {
+    PetscInt           nc;
+    const PetscInt    *cj;
+    const PetscScalar *v;
+    PetscCallAbort(PETSC_COMM_SELF, MatGetRow(A, i, &nc, &cj, &v));
+    for (PetscInt k = 0; k < nc; ++k) D(i, cj[k]) = PetscRealPart(v[k]);
+    PetscCallAbort(PETSC_COMM_SELF, MatRestoreRow(A, i, &nc, &cj, &v));
+  }
+  return D;
+}
+
+// Sparse H (N x 3 n_c), column 3c + dir = h_{dir,c}.
+PetscErrorCode AssembleH(const ContactSet &cs, Vec like, Mat *H)
+{
+  PetscInt rstart, rend, n;
+  MPI_Comm comm;
+  Triplets t;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectGetComm((PetscObject)like, &comm));
+  PetscCall(VecGetOwnershipRange(like, &rstart, &rend));
+  PetscCall(VecGetSize(like, &n));
+  for (PetscInt c = 0; c < cs.Size(); ++c)
+    for (int d = 0; d < 3; ++d)
+      for (const ContactNode &nd : cs.points[c].nodes)
+        for (int k = 0; k < 3; ++k) {
+          const PetscReal v = nd.weight * cs.Axis(c, d)[k];
+          if (v != 0 && nd.dofs[k] >= rstart && nd.dofs[k] < rend) t.Add(nd.dofs[k], 3 * c + d, v);
+        }
+  PetscCall(MatCreateFromTriplets(comm, rend - rstart, PETSC_DECIDE, n, 3 * cs.Size(), t, H));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+ThetaIntegrator::~ThetaIntegrator()
+{
+  if (to_all_) PetscCallVoid(VecScatterDestroy(&to_all_));
+}
+
+PetscErrorCode ThetaIntegrator::SetOptionsPrefix(const char *prefix)
+{
+  PetscFunctionBeginUser;
+  prefix_ = prefix ? prefix : "";
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetTheta(PetscReal theta)
+{
+  PetscFunctionBeginUser;
+  PetscCall(CheckReal(comm_, prefix_.c_str(), "theta", theta, Range::Closed(0.5, 1.0)));
+  theta_ = theta;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetFixedPoint(PetscReal tol, PetscInt max_it)
+{
+  PetscFunctionBeginUser;
+  PetscCall(CheckReal(comm_, prefix_.c_str(), "fp_tol", tol, Range::Positive()));
+  PetscCheck(max_it >= 1, comm_, kErrInput, "option -%sfp_max_it = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), max_it);
+  fp_tol_    = tol;
+  fp_max_it_ = max_it;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetRhoScale(PetscReal s)
+{
+  PetscFunctionBeginUser;
+  PetscCall(CheckReal(comm_, prefix_.c_str(), "rho_scale", s, Range::Positive()));
+  rho_scale_ = s;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetDenseMax(PetscInt n)
+{
+  PetscFunctionBeginUser;
+  dense_max_ = n;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetFromOptions()
+{
+  PC pc;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm_, prefix_.c_str(), "Non-smooth theta-method", "ThetaIntegrator");
+  SquealOptionsReal("-theta", "theta in [0.5, 1] (0.5: trapezoidal, no numerical dissipation)", "ThetaIntegrator::SetTheta",
+                    &theta_, Range::Closed(0.5, 1.0));
+  SquealOptionsReal("-fp_tol", "Fixed-point tolerance on sum ||dr||_1 / (R_ref + sum r_n)", "ThetaIntegrator::SetFixedPoint",
+                    &fp_tol_, Range::Positive());
+  PetscCall(PetscOptionsInt("-fp_max_it", "Fixed-point pass limit per step (hitting it is reported)",
+                            "ThetaIntegrator::SetFixedPoint", fp_max_it_, &fp_max_it_, nullptr));
+  SquealOptionsReal("-rho_scale", "Factor on the augmented-Lagrangian parameters rho of rule (2.4)",
+                    "ThetaIntegrator::SetRhoScale", &rho_scale_, Range::Positive());
+  PetscCall(PetscOptionsInt("-dense_max", "Largest N for the dense one-rank back end (larger or distributed: sparse)",
+                            "ThetaIntegrator::SetDenseMax", dense_max_, &dense_max_, nullptr));
+  PetscOptionsEnd();
+  PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
+  PetscCall(KSPCreate(comm_, ksp_.out()));
+  PetscCall(KSPSetOptionsPrefix(ksp_, prefix_.c_str()));
+  PetscCall(KSPSetType(ksp_, KSPPREONLY));
+  PetscCall(KSPGetPC(ksp_, &pc));
+  PetscCall(PCSetType(pc, PCLU));
+  PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  PetscCall(KSPSetFromOptions(ksp_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
+{
+  PetscMPIInt size;
+  PetscFunctionBeginUser;
+  PetscCheck(h > 0 && std::isfinite(h), comm_, kErrInput, "time step h = %g: expected > 0", (double)h);
+  if (!ksp_) PetscCall(SetFromOptions());
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  model_ = &model;
+  h_     = h;
+  n_     = model.Size();
+  nc_    = model.contacts.Size();
+  dense_ = size == 1 && n_ <= dense_max_;
+  g0_.resize(nc_);
+  for (PetscInt c = 0; c < nc_; ++c) g0_[c] = model.contacts.points[c].g0;
+  wf_.resize(3 * nc_);
+  gap_.resize(nc_);
+  if (dense_) PetscCall(SetUpDense());
+  else PetscCall(SetUpSparse());
+  if (nc_ > 0)
+    for (PetscInt c = 0; c < nc_; ++c)
+      PetscCheck(W_(3 * c + kN, 3 * c + kN) > 0 && W_(3 * c + kT, 3 * c + kT) > 0, comm_, PETSC_ERR_PLIB,
+                 "Delassus matrix has a non-positive diagonal at contact %" PetscInt_FMT, c);
+  local_.Setup(model.contacts, W_, h, rho_scale_);
+  local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetUpDense()
+{
+  const Model &m = *model_;
+  PetscFunctionBeginUser;
+  Md_ = DenseCopy(m.M, n_);
+  Cd_ = DenseCopy(m.C, n_);
+  Kd_ = DenseCopy(m.K, n_);
+  Fd_.resize(n_);
+  {
+    const PetscScalar *f;
+    PetscCall(VecGetArrayRead(m.F, &f));
+    for (PetscInt i = 0; i < n_; ++i) Fd_[i] = PetscRealPart(f[i]);
+    PetscCall(VecRestoreArrayRead(m.F, &f));
+  }
+  const PetscReal       h = h_, t = theta_;
+  const Eigen::MatrixXd A = Md_ + h * t * Cd_ + h * h * t * t * Kd_;
+  const Eigen::MatrixXd B = Md_ - h * (1 - t) * Cd_ - h * h * t * (1 - t) * Kd_;
+  Eigen::LLT<Eigen::MatrixXd> llt(A);
+  PetscCheck(llt.info() == Eigen::Success, comm_, kErrInput,
+             "theta-method: A = M + h theta C + h^2 theta^2 K is not positive definite (h = %g)", (double)h);
+  Ht_.setZero(3 * nc_, n_);
+  for (PetscInt c = 0; c < nc_; ++c)
+    for (int d = 0; d < 3; ++d)
+      for (const ContactNode &nd : m.contacts.points[c].nodes)
+        for (int k = 0; k < 3; ++k) Ht_(3 * c + d, nd.dofs[k]) += nd.weight * m.contacts.Axis(c, d)[k];
+  P1_ = llt.solve(B);
+  P2_ = -h * llt.solve(Kd_);
+  p3_ = h * llt.solve(Fd_);
+  Y_  = llt.solve(Ht_.transpose());
+  W_  = Ht_ * Y_;
+  vf_.resize(n_);
+  dU0_.resize(n_);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetUpSparse()
+{
+  const Model &m = *model_;
+  PetscFunctionBeginUser;
+  const PetscReal h = h_, t = theta_;
+  PetscCall(MatDuplicate(m.M, MAT_COPY_VALUES, A_.out()));
+  PetscCall(MatDuplicate(m.M, MAT_COPY_VALUES, B_.out()));
+  if (m.HasDamping()) {
+    PetscCall(MatAXPY(A_, h * t, m.C, DIFFERENT_NONZERO_PATTERN));
+    PetscCall(MatAXPY(B_, -h * (1 - t), m.C, DIFFERENT_NONZERO_PATTERN));
+  }
+  PetscCall(MatAXPY(A_, h * h * t * t, m.K, DIFFERENT_NONZERO_PATTERN));
+  PetscCall(MatAXPY(B_, -h * h * t * (1 - t), m.K, DIFFERENT_NONZERO_PATTERN));
+  PetscCall(KSPReset(ksp_));
+  PetscCall(KSPSetOperators(ksp_, A_, A_));
+  PetscCall(KSPSetUp(ksp_));
+  PetscCall(VecDuplicate(m.F, rhs_.out()));
+  PetscCall(VecDuplicate(m.F, vf_s_.out()));
+  PetscCall(VecDuplicate(m.F, tmp_.out()));
+  PetscCall(AssembleH(m.contacts, m.F, H_.out()));
+  PetscCall(MatCreateVecs(H_, loc_.out(), nullptr));
+  PetscCall(VecDuplicate(loc_, rloc_.out()));
+  if (to_all_) PetscCall(VecScatterDestroy(&to_all_));
+  PetscCall(VecScatterCreateToAll(loc_, &to_all_, loc_all_.out()));
+
+  // Y = A^-1 H column by column (3 n_c solves, once per h), W = H^T Y.
+  PetscInt rstart, rend;
+  PetscCall(VecGetOwnershipRange(m.F, &rstart, &rend));
+  PetscCall(MatCreateDense(comm_, rend - rstart, PETSC_DECIDE, n_, 3 * nc_, nullptr, Yd_.out()));
+  W_.setZero(3 * nc_, 3 * nc_);
+  VecH col, ycol;
+  PetscCall(VecDuplicate(m.F, col.out()));
+  PetscCall(VecDuplicate(m.F, ycol.out()));
+  Eigen::VectorXd wcol;
+  for (PetscInt j = 0; j < 3 * nc_; ++j) {
+    PetscCall(MatGetColumnVector(H_, col, j));
+    PetscCall(KSPSolve(ksp_, col, ycol));
+    KSPConvergedReason reason;
+    PetscCall(KSPGetConvergedReason(ksp_, &reason));
+    PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED, "theta-method: solve with A = M + h theta C + h^2 theta^2 K failed (%s)",
+               KSPConvergedReasons[reason]);
+    const PetscScalar *y;
+    PetscCall(VecGetArrayRead(ycol, &y));
+    for (PetscInt i = rstart; i < rend; ++i) PetscCall(MatSetValue(Yd_, i, j, y[i - rstart], INSERT_VALUES));
+    PetscCall(VecRestoreArrayRead(ycol, &y));
+    PetscCall(ToLocal(ycol, wcol));
+    W_.col(j) = wcol;
+  }
+  PetscCall(MatAssemblyBegin(Yd_, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(Yd_, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::ToLocal(Vec x, Eigen::VectorXd &out)
+{
+  const PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(MatMultTranspose(H_, x, loc_));
+  PetscCall(VecScatterBegin(to_all_, loc_, loc_all_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(to_all_, loc_, loc_all_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetArrayRead(loc_all_, &a));
+  out.resize(3 * nc_);
+  for (PetscInt k = 0; k < 3 * nc_; ++k) out[k] = PetscRealPart(a[k]);
+  PetscCall(VecRestoreArrayRead(loc_all_, &a));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::Local(Vec x, Eigen::VectorXd &out)
+{
+  PetscFunctionBeginUser;
+  if (dense_) {
+    const PetscScalar *a;
+    PetscCall(VecGetArrayRead(x, &a));
+    out.noalias() = Ht_ * Eigen::Map<const Eigen::VectorXd>(a, n_);
+    PetscCall(VecRestoreArrayRead(x, &a));
+  } else PetscCall(ToLocal(x, out));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info)
+{
+  const PetscReal h = h_, t = theta_;
+  PetscFunctionBeginUser;
+  if (dense_) {
+    PetscScalar *u, *du;
+    PetscCall(VecGetArray(U, &u));
+    PetscCall(VecGetArray(dU, &du));
+    Eigen::Map<Eigen::VectorXd> Um(u, n_), dUm(du, n_);
+    vf_.noalias() = P1_ * dUm;                       // (S4)
+    vf_.noalias() += P2_ * Um;
+    vf_ += p3_;
+    if (nc_ > 0) {
+      wf_.noalias() = Ht_ * vf_;                     // (S5)
+      dU0_          = Um + h * (1 - t) * dUm;
+      for (PetscInt c = 0; c < nc_; ++c) gap_[c] = Ht_.row(3 * c + kN).dot(dU0_) + g0_[c];
+      info->contact = local_.Solve(wf_, gap_, r);    // (S6)-(S7)
+      dU0_          = dUm;
+      dUm           = vf_;
+      dUm.noalias() += h * (Y_ * r);                 // (S8)
+    } else {
+      dU0_ = dUm;
+      dUm  = vf_;
+    }
+    Um += h * (t * dUm + (1 - t) * dU0_);            // (S9)
+    PetscCall(VecRestoreArray(dU, &du));
+    PetscCall(VecRestoreArray(U, &u));
+  } else {
+    PetscCall(MatMult(B_, dU, rhs_));                // (S4)
+    PetscCall(MatMult(model_->K, U, tmp_));
+    PetscCall(VecAXPBYPCZ(rhs_, -h, h, 1.0, tmp_, model_->F));
+    PetscCall(KSPSolve(ksp_, rhs_, vf_s_));
+    // (S9) needs dU^i after dU is overwritten: U += h (1 - theta) dU^i now, h theta dU^{i+1} later.
+    if (nc_ > 0) {
+      PetscCall(ToLocal(vf_s_, wf_));                // (S5)
+      PetscCall(VecWAXPY(tmp_, h * (1 - t), dU, U));
+      Eigen::VectorXd &g = rhat_;
+      PetscCall(ToLocal(tmp_, g));
+      for (PetscInt c = 0; c < nc_; ++c) gap_[c] = g[3 * c + kN] + g0_[c];
+      info->contact = local_.Solve(wf_, gap_, r);    // (S6)-(S7)
+    }
+    PetscCall(VecAXPY(U, h * (1 - t), dU));
+    PetscCall(VecCopy(vf_s_, dU));
+    if (nc_ > 0) {                                   // (S8)
+      PetscScalar *rl;
+      PetscInt     lo, hi;
+      PetscCall(VecGetOwnershipRange(rloc_, &lo, &hi));
+      PetscCall(VecGetArray(rloc_, &rl));
+      for (PetscInt k = lo; k < hi; ++k) rl[k - lo] = h * r[k];
+      PetscCall(VecRestoreArray(rloc_, &rl));
+      PetscCall(MatMultAdd(Yd_, rloc_, dU, dU));
+    }
+    PetscCall(VecAXPY(U, h * t, dU));                // (S9)
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic)
+{
+  PetscScalar ek, ee;
+  PetscFunctionBeginUser;
+  if (!tmp_) PetscCall(VecDuplicate(U, tmp_.out()));
+  PetscCall(MatMult(model_->M, dU, tmp_));
+  PetscCall(VecDot(dU, tmp_, &ek));
+  PetscCall(MatMult(model_->K, U, tmp_));
+  PetscCall(VecDot(U, tmp_, &ee));
+  *kinetic = 0.5 * PetscRealPart(ek);
+  *elastic = 0.5 * PetscRealPart(ee);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::Work(Vec U0, Vec U1, const Eigen::VectorXd &r, PetscReal *damping, PetscReal *reactions,
+                                     PetscReal *load)
+{
+  VecH        dq, cq;
+  PetscScalar wc = 0, wf;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(U1, dq.out()));
+  PetscCall(VecWAXPY(dq, -1.0, U0, U1)); // h ub
+  if (model_->HasDamping()) {
+    PetscCall(VecDuplicate(U1, cq.out()));
+    PetscCall(MatMult(model_->C, dq, cq));
+    PetscCall(VecDot(dq, cq, &wc));
+  }
+  PetscCall(VecDot(dq, model_->F, &wf));
+  Eigen::VectorXd loc;
+  if (nc_ > 0) PetscCall(Local(dq, loc));
+  *damping   = PetscRealPart(wc) / h_;
+  *load      = PetscRealPart(wf);
+  *reactions = nc_ > 0 ? loc.dot(r) : 0.0;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "theta-method: theta = %g, h = %.6g s, %s back end, fixed point tol %g, at most %" PetscInt_FMT
+                                   " passes, rho scale %g\n",
+                                   (double)theta_, (double)h_, dense_ ? "dense" : "sparse (KSP)", (double)fp_tol_, fp_max_it_,
+                                   (double)rho_scale_));
+  if (!dense_ && ksp_) {
+    PetscCall(PetscViewerASCIIPushTab(viewer));
+    PetscCall(KSPView(ksp_, viewer));
+    PetscCall(PetscViewerASCIIPopTab(viewer));
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
