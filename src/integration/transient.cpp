@@ -172,6 +172,10 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
       if (res.summary.fp_capped++ == 0) {
         res.summary.first_capped_step     = i;
         res.summary.first_capped_residual = info.contact.residual;
+        PetscCall(PetscFPrintf(comm_, PETSC_STDERR,
+                               "squeal: warning: contact fixed point hit its pass limit at step %" PetscInt_FMT
+                               " (t = %g s, residual %.2e): reactions not converged; see -%sfp_max_it, -%srho_scale\n",
+                               i, (double)t, (double)info.contact.residual, ti.Prefix().c_str(), ti.Prefix().c_str()));
       }
     }
     PetscReal dwc, dwr, dwf;

@@ -1,0 +1,229 @@
+// The non-smooth theta-method: linear accuracy and order against the exact solution, inelastic
+// impact, stick, both reference limit cycles with their energy balance, and extreme settings.
+#include "dense.h"
+#include "squeal/integration/transient.h"
+#include "squeal/model/builders.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+
+using namespace squeal;
+
+namespace {
+
+// Exact state of M u'' + C u' + K u = F at time t from (u0, v0): z = z_s + V e^{D t} V^-1 (z0 - z_s).
+Eigen::VectorXd ExactLinear(const Eigen::MatrixXd &M, const Eigen::MatrixXd &C, const Eigen::MatrixXd &K, const Eigen::VectorXd &F,
+                            const Eigen::VectorXd &z0, double t)
+{
+  const Eigen::Index n = M.rows();
+  Eigen::MatrixXd    A = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  A.topRightCorner(n, n)    = Eigen::MatrixXd::Identity(n, n);
+  A.bottomLeftCorner(n, n)  = -M.inverse() * K;
+  A.bottomRightCorner(n, n) = -M.inverse() * C;
+  Eigen::VectorXd zs        = Eigen::VectorXd::Zero(2 * n);
+  zs.head(n)                = K.ldlt().solve(F);
+  Eigen::EigenSolver<Eigen::MatrixXd> es(A);
+  const Eigen::MatrixXcd              V = es.eigenvectors();
+  Eigen::VectorXcd                    e = (es.eigenvalues() * t).array().exp();
+  const Eigen::VectorXcd              c = V.partialPivLu().solve((z0 - zs).cast<std::complex<double>>());
+  return zs + (V * (e.asDiagonal() * c)).real();
+}
+
+struct Run {
+  Model           model;
+  ThetaIntegrator ti{PETSC_COMM_WORLD};
+};
+
+void SetState(Vec v, const Eigen::VectorXd &x)
+{
+  PetscInt lo, hi;
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetOwnershipRange(v, &lo, &hi));
+  for (PetscInt i = lo; i < hi; ++i) PetscCallAbort(PETSC_COMM_WORLD, VecSetValue(v, i, x[i], INSERT_VALUES));
+  PetscCallAbort(PETSC_COMM_WORLD, VecAssemblyBegin(v));
+  PetscCallAbort(PETSC_COMM_WORLD, VecAssemblyEnd(v));
+}
+
+double LinearError(double theta, PetscInt steps, bool dense)
+{
+  ThreeDofParams p;
+  Model          model;
+  PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, p, model));
+  model.contacts.points.clear(); // no contact: a linear ODE
+  ThetaIntegrator ti(PETSC_COMM_WORLD);
+  PetscCallAbort(PETSC_COMM_WORLD, ti.SetFromOptions());
+  PetscCallAbort(PETSC_COMM_WORLD, ti.SetTheta(theta));
+  PetscCallAbort(PETSC_COMM_WORLD, ti.SetDenseMax(dense ? 1000 : 0));
+  const double T = 0.005;
+  PetscCallAbort(PETSC_COMM_WORLD, ti.SetUp(model, T / steps));
+  Eigen::VectorXd z0(6);
+  z0 << 1e-3, -2e-3, 5e-4, 0.1, 0.3, -0.2;
+  Vec U, dU;
+  PetscCallAbort(PETSC_COMM_WORLD, VecDuplicate(model.F, &U));
+  PetscCallAbort(PETSC_COMM_WORLD, VecDuplicate(model.F, &dU));
+  SetState(U, z0.head(3));
+  SetState(dU, z0.tail(3));
+  Eigen::VectorXd r(0);
+  StepInfo        info;
+  for (PetscInt i = 0; i < steps; ++i) PetscCallAbort(PETSC_COMM_WORLD, ti.Step(U, dU, r, &info));
+  Eigen::VectorXd z(6);
+  z << test::ToDense(U), test::ToDense(dU);
+  const Eigen::VectorXd ex = ExactLinear(test::ToDense(model.M), test::ToDense(model.C), test::ToDense(model.K),
+                                         test::ToDense(model.F), z0, T);
+  PetscCallAbort(PETSC_COMM_WORLD, VecDestroy(&U));
+  PetscCallAbort(PETSC_COMM_WORLD, VecDestroy(&dU));
+  return (z.head(3) - ex.head(3)).norm() / ex.head(3).norm();
+}
+
+} // namespace
+
+TEST(Theta, LinearConvergenceOrders)
+{
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  for (bool dense : {true, false}) {
+    if (dense && size > 1) continue; // the dense back end is a one-rank path
+    for (double theta : {0.5, 1.0}) {
+      const double e1 = LinearError(theta, 400, dense), e2 = LinearError(theta, 800, dense), e3 = LinearError(theta, 1600, dense);
+      const double order = std::log2(e2 / e3);
+      const double expected = theta == 0.5 ? 2.0 : 1.0;
+      EXPECT_NEAR(order, expected, 0.1) << "theta " << theta << (dense ? " dense" : " sparse") << " errors " << e1 << " " << e2 << " " << e3;
+      EXPECT_NEAR(std::log2(e1 / e2), expected, 0.15);
+      if (theta == 0.5) {
+        EXPECT_LT(e3, 1e-5);
+      }
+    }
+  }
+}
+
+TEST(Theta, DroppedMassStopsAtImpact)
+{
+  ThreeDofParams p;
+  p.mu = 0; // frictionless: the tangential motion decouples only through K
+  Model model;
+  ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, p, model), 0);
+  ThetaIntegrator ti(PETSC_COMM_WORLD);
+  ASSERT_EQ(ti.SetFromOptions(), 0);
+  const double h = 1e-5;
+  ASSERT_EQ(ti.SetUp(model, h), 0);
+  Vec U, dU;
+  ASSERT_EQ(VecDuplicate(model.F, &U), 0);
+  ASSERT_EQ(VecDuplicate(model.F, &dU), 0);
+  Eigen::Vector3d u0(0, 0, 1e-4), v0(0, 0, -1.0); // 0.1 mm above, falling at 1 m/s
+  SetState(U, u0);
+  SetState(dU, v0);
+  Eigen::VectorXd r = Eigen::VectorXd::Zero(3);
+  StepInfo        info;
+  bool            touched = false;
+  PetscInt        impact  = -1;
+  for (PetscInt i = 0; i < 3000; ++i) {
+    ASSERT_EQ(ti.Step(U, dU, r, &info), 0);
+    ASSERT_TRUE(info.contact.converged);
+    Eigen::VectorXd g, v;
+    ASSERT_EQ(ti.Local(U, g), 0);
+    ASSERT_EQ(ti.Local(dU, v), 0);
+    if (!touched && r[kN] > 0) touched = true, impact = i;
+    if (touched && i > impact) {
+      // No bounce: the impact step ends on the surface (modified gap 0); from the next step on the
+      // normal velocity is zero and the mass stays on the surface.
+      EXPECT_NEAR(v[kN], 0.0, 1e-9) << "step " << i;
+      EXPECT_NEAR(g[kN], 0.0, 1e-12) << "step " << i;
+      EXPECT_GT(r[kN], 0.0) << "step " << i;
+    }
+  }
+  EXPECT_TRUE(touched);
+  EXPECT_NEAR(impact * h, 1e-4, 2 * h); // free fall of 0.1 mm at ~1 m/s
+  VecDestroy(&U);
+  VecDestroy(&dU);
+}
+
+namespace {
+
+TransientResult RunTransient(const ThreeDofParams &p, PetscReal periods, PetscErrorCode *ierr = nullptr)
+{
+  Model model;
+  PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, p, model));
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  StabilitySolver    stab(PETSC_COMM_WORLD);
+  SlidingEquilibrium eq;
+  StabilityResult    sr;
+  PetscCallAbort(PETSC_COMM_WORLD, eqs.Solve(model, eq));
+  PetscCallAbort(PETSC_COMM_WORLD, stab.Solve(model, eq, sr));
+  ThetaIntegrator   ti(PETSC_COMM_WORLD);
+  TransientAnalysis ta(PETSC_COMM_WORLD);
+  PetscCallAbort(PETSC_COMM_WORLD, ti.SetFromOptions());
+  PetscCallAbort(PETSC_COMM_WORLD, ta.SetFromOptions());
+  ta.periods    = periods;
+  ta.keep_every = 5;
+  TransientResult res;
+  PetscCallAbort(PETSC_COMM_WORLD, PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+  PetscErrorCode e = ta.Run(model, eq, sr, ti, res);
+  PetscCallAbort(PETSC_COMM_WORLD, PetscPopErrorHandler());
+  if (ierr) *ierr = e;
+  else EXPECT_EQ(e, 0);
+  return res;
+}
+
+} // namespace
+
+TEST(Transient, Case1SeparationSlipLimitCycle)
+{
+  ThreeDofParams p; // V = 3
+  TransientResult r = RunTransient(p, 150);
+  PetscMPIInt     rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank) return; // the summary lives on rank 0
+  EXPECT_GT(r.summary.frac_separated, 0.1);
+  EXPECT_EQ(r.summary.frac_stuck, 0.0);
+  EXPECT_NEAR(r.summary.period, 0.01082, 0.0003); // a nonlinear cycle near the linear period 0.010905
+  EXPECT_LT(r.summary.energy_defect, 1e-8);
+  EXPECT_EQ(r.summary.fp_capped, 0);
+}
+
+TEST(Transient, Case2StickSlipLimitCycle)
+{
+  ThreeDofParams p;
+  p.V              = 0.75;
+  TransientResult r = RunTransient(p, 150);
+  PetscMPIInt     rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank) return;
+  EXPECT_GT(r.summary.frac_stuck, 0.02);
+  EXPECT_EQ(r.summary.frac_separated, 0.0);
+  // In stick the slip velocity is zero (H = I: local = DOF velocities) and r_T is inside the disc.
+  PetscInt stuck = 0;
+  for (size_t k = 0; k < r.t.size(); ++k) {
+    if (r.status[k] != kStick) continue;
+    ++stuck;
+    const double *v = &r.V[3 * k], *rr = &r.R[3 * k];
+    EXPECT_NEAR(v[kT] - p.V, 0.0, 1e-9 * p.V) << "t = " << r.t[k];
+    EXPECT_NEAR(v[kB], 0.0, 1e-9 * p.V) << "t = " << r.t[k];
+    EXPECT_LT(std::hypot(rr[kT], rr[kB]), p.mu * rr[kN]);
+  }
+  EXPECT_GT(stuck, 100);
+  EXPECT_LT(r.summary.energy_defect, 1e-8);
+  EXPECT_EQ(r.summary.fp_capped, 0);
+}
+
+TEST(Transient, NoFrictionDecaysToEquilibrium)
+{
+  ThreeDofParams p;
+  p.mu              = 0;
+  PetscErrorCode  e = 0;
+  // With mu = 0 every mode is stable: start from the lowest mode instead.
+  TransientResult r = RunTransient(p, 60, &e);
+  ASSERT_EQ(e, 0);
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank) return;
+  const size_t n = r.t.size();
+  double       first = 0, last = 0;
+  for (size_t k = 0; k < n / 20; ++k)
+    for (int j = 0; j < 3; ++j) first = std::max(first, std::abs(r.V[3 * k + j]));
+  for (int j = 0; j < 3; ++j) last = std::max(last, std::abs(r.V[(n - 1) * 3 + j]));
+  EXPECT_GT(first, 0.0);
+  EXPECT_LT(last, 1e-3 * first); // every mode damped (sigma <= -10 1/s over 0.65 s)
+  EXPECT_EQ(r.summary.frac_separated, 0.0);
+}
