@@ -7,7 +7,10 @@ int main(int argc, char **argv)
 {
   PetscCall(SlepcInitialize(&argc, &argv, nullptr, squeal::kHelp));
   PetscErrorCode ierr = squeal::PushErrorHandler();
-  if (!ierr) ierr = squeal::RunApp(argc, argv);
+  if (!ierr) {
+    ierr = squeal::RunApp(argc, argv);
+    PetscCall(PetscPopErrorHandler());
+  }
   PetscCall(SlepcFinalize());
   return ierr ? 1 : 0;
 }

@@ -32,6 +32,13 @@ PetscErrorCode CheckReal(MPI_Comm comm, const char *prefix, const char *name, Pe
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode OptionChecks::Run(MPI_Comm comm) const
+{
+  PetscFunctionBeginUser;
+  for (const Item &it : items_) PetscCall(CheckReal(comm, it.prefix.c_str(), it.name.c_str(), *it.v, it.r));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
 {
   // Read by PETSc itself only at PetscFinalize(), so still "unused" here.

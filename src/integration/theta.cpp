@@ -97,18 +97,20 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
 {
   PC pc;
   PetscFunctionBeginUser;
+  OptionChecks checks;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Non-smooth theta-method", "ThetaIntegrator");
   SquealOptionsReal("-theta", "theta in [0.5, 1] (0.5: trapezoidal, no numerical dissipation)", "ThetaIntegrator::SetTheta",
-                    &theta_, Range::Closed(0.5, 1.0));
+                    &theta_, Range::Closed(0.5, 1.0), checks);
   SquealOptionsReal("-fp_tol", "Fixed-point tolerance on sum ||dr||_1 / (R_ref + sum r_n)", "ThetaIntegrator::SetFixedPoint",
-                    &fp_tol_, Range::Positive());
+                    &fp_tol_, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-fp_max_it", "Fixed-point pass limit per step (hitting it is reported)",
                             "ThetaIntegrator::SetFixedPoint", fp_max_it_, &fp_max_it_, nullptr));
   SquealOptionsReal("-rho_scale", "Factor on the augmented-Lagrangian parameters rho of rule (2.4)",
-                    "ThetaIntegrator::SetRhoScale", &rho_scale_, Range::Positive());
+                    "ThetaIntegrator::SetRhoScale", &rho_scale_, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-dense_max", "Largest N for the dense one-rank back end (larger or distributed: sparse)",
                             "ThetaIntegrator::SetDenseMax", dense_max_, &dense_max_, nullptr));
   PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
   PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
   PetscCall(KSPCreate(comm_, ksp_.out()));
   PetscCall(KSPSetOptionsPrefix(ksp_, prefix_.c_str()));
@@ -136,6 +138,10 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   for (PetscInt c = 0; c < nc_; ++c) g0_[c] = model.contacts.points[c].g0;
   wf_.resize(3 * nc_);
   gap_.resize(nc_);
+  loc_dq_.resize(3 * nc_);
+  // Work vectors of the energy bookkeeping, so that it allocates nothing per step either.
+  PetscCall(VecDuplicate(model.F, dq_.out()));
+  PetscCall(VecDuplicate(model.F, cq_.out()));
   if (dense_) PetscCall(SetUpDense());
   else PetscCall(SetUpSparse());
   if (nc_ > 0)
@@ -322,11 +328,10 @@ PetscErrorCode ThetaIntegrator::Energy(Vec U, Vec dU, PetscReal *kinetic, PetscR
 {
   PetscScalar ek, ee;
   PetscFunctionBeginUser;
-  if (!tmp_) PetscCall(VecDuplicate(U, tmp_.out()));
-  PetscCall(MatMult(model_->M, dU, tmp_));
-  PetscCall(VecDot(dU, tmp_, &ek));
-  PetscCall(MatMult(model_->K, U, tmp_));
-  PetscCall(VecDot(U, tmp_, &ee));
+  PetscCall(MatMult(model_->M, dU, cq_));
+  PetscCall(VecDot(dU, cq_, &ek));
+  PetscCall(MatMult(model_->K, U, cq_));
+  PetscCall(VecDot(U, cq_, &ee));
   *kinetic = 0.5 * PetscRealPart(ek);
   *elastic = 0.5 * PetscRealPart(ee);
   PetscFunctionReturn(0);
@@ -335,22 +340,18 @@ PetscErrorCode ThetaIntegrator::Energy(Vec U, Vec dU, PetscReal *kinetic, PetscR
 PetscErrorCode ThetaIntegrator::Work(Vec U0, Vec U1, const Eigen::VectorXd &r, PetscReal *damping, PetscReal *reactions,
                                      PetscReal *load)
 {
-  VecH        dq, cq;
   PetscScalar wc = 0, wf;
   PetscFunctionBeginUser;
-  PetscCall(VecDuplicate(U1, dq.out()));
-  PetscCall(VecWAXPY(dq, -1.0, U0, U1)); // h ub
+  PetscCall(VecWAXPY(dq_, -1.0, U0, U1)); // h ub
   if (model_->HasDamping()) {
-    PetscCall(VecDuplicate(U1, cq.out()));
-    PetscCall(MatMult(model_->C, dq, cq));
-    PetscCall(VecDot(dq, cq, &wc));
+    PetscCall(MatMult(model_->C, dq_, cq_));
+    PetscCall(VecDot(dq_, cq_, &wc));
   }
-  PetscCall(VecDot(dq, model_->F, &wf));
-  Eigen::VectorXd loc;
-  if (nc_ > 0) PetscCall(Local(dq, loc));
+  PetscCall(VecDot(dq_, model_->F, &wf));
+  if (nc_ > 0) PetscCall(Local(dq_, loc_dq_));
   *damping   = PetscRealPart(wc) / h_;
   *load      = PetscRealPart(wf);
-  *reactions = nc_ > 0 ? loc.dot(r) : 0.0;
+  *reactions = nc_ > 0 ? loc_dq_.dot(r) : 0.0;
   PetscFunctionReturn(0);
 }
 

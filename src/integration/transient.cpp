@@ -15,17 +15,18 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
   PetscInt  n = 0, nd = 0;
   PetscReal buf[1024];
   PetscFunctionBeginUser;
+  OptionChecks checks;
   PetscOptionsBegin(comm_, "transient_", "Transient run to the limit cycle", "TransientAnalysis");
-  SquealOptionsReal("-periods", "Duration in periods of the starting mode", "TransientAnalysis", &periods, Range::Positive());
+  SquealOptionsReal("-periods", "Duration in periods of the starting mode", "TransientAnalysis", &periods, Range::Positive(), checks);
   SquealOptionsReal("-t_final", "Duration (s); overrides -transient_periods when > 0", "TransientAnalysis", &t_final,
-                    Range::NonNegative());
+                    Range::NonNegative(), checks);
   SquealOptionsReal("-steps_per_period", "Steps per period of the starting mode: h = T / steps", "TransientAnalysis",
-                    &steps_per_period, Range::Positive());
+                    &steps_per_period, Range::Positive(), checks);
   SquealOptionsReal("-h", "Time step (s); overrides -transient_steps_per_period when > 0", "TransientAnalysis", &h,
-                    Range::NonNegative());
+                    Range::NonNegative(), checks);
   PetscCall(PetscOptionsInt("-keep_every", "Record every k-th step", "TransientAnalysis", keep_every, &keep_every, nullptr));
   SquealOptionsReal("-amplitude", "Start: U_e + a Re(phi), dU = -a omega Im(phi), phi's largest tangential component 1 (m)",
-                    "TransientAnalysis", &amplitude, Range::Any());
+                    "TransientAnalysis", &amplitude, Range::Any(), checks);
   PetscCall(PetscOptionsInt("-mode", "Index of the starting mode in the eigenvalue table (-1: most unstable)", "TransientAnalysis",
                             mode, &mode, nullptr));
   n = 1024;
@@ -41,6 +42,7 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
   PetscCall(PetscOptionsBool("-progress", "Progress line with ETA on stderr (default: when stderr is a terminal)",
                              "TransientAnalysis", progress, &progress, &progress_set));
   PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
   PetscCheck(keep_every >= 1, comm_, kErrInput, "option -transient_keep_every = %" PetscInt_FMT ": expected >= 1", keep_every);
   for (PetscReal x : u0) PetscCheck(std::isfinite(x), comm_, kErrInput, "option -transient_u0 has a NaN or infinite entry");
   for (PetscReal x : du0) PetscCheck(std::isfinite(x), comm_, kErrInput, "option -transient_du0 has a NaN or infinite entry");

@@ -112,6 +112,8 @@ PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model)
   PetscFunctionBeginUser;
   PetscCall(CheckThreeDofParams(comm, p.cell));
   PetscCheck(p.cells >= 1, comm, kErrInput, "option -model_cells = %" PetscInt_FMT ": expected >= 1", p.cells);
+  PetscCheck(p.contact_every >= 1, comm, kErrInput, "option -model_contact_every = %" PetscInt_FMT ": expected >= 1",
+             p.contact_every);
   PetscCall(CheckReal(comm, "model_", "coupling", p.coupling, Range::NonNegative()));
   PetscCall(CheckReal(comm, "model_", "gamma_step", p.gamma_step, Range::Any()));
   PetscCall(CheckReal(comm, "model_", "speed_step", p.speed_step, Range::Any()));
@@ -131,6 +133,7 @@ PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model)
         t.Add(o + a, o + 3 + a, -p.coupling);
         t.Add(o + 3 + a, o + a, -p.coupling);
       }
+    if (i % p.contact_every != 0) continue;
     F[o + 2] = -p.cell.Fn;
     ContactPoint   pt;
     const PetscReal g = (p.cell.gamma + i * p.gamma_step) * kDeg;
@@ -282,34 +285,36 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   char              exportdir[PETSC_MAX_PATH_LEN] = "";
   PetscBool         help = PETSC_FALSE, set;
   PetscFunctionBeginUser;
+  OptionChecks checks;
   PetscCall(PetscOptionsHasHelp(nullptr, &help));
 
   PetscOptionsBegin(comm, "contact_", "Contact and friction", "Model");
-  SquealOptionsReal("-mu", "Coulomb friction coefficient", "ContactSet", &p.mu, Range::NonNegative());
+  SquealOptionsReal("-mu", "Coulomb friction coefficient", "ContactSet", &p.mu, Range::NonNegative(), checks);
   SquealOptionsReal("-v", "Counter-surface speed V (m/s); point c slides at speed_factor_c * V", "ContactSet", &p.V,
-                    Range::Positive());
+                    Range::Positive(), checks);
   PetscCall(PetscOptionsEList("-friction", "Friction law: planar (disc |r_T| <= mu r_n) or rectilinear (along t only)",
                               "ContactSet", laws, 2, laws[law], &law, nullptr));
   PetscOptionsEnd();
+  PetscCall(checks.Run(comm));
 
   PetscOptionsBegin(comm, "model_", "Structural model", "Model");
   PetscCall(PetscOptionsEList("-type", "Model: three_dof (reference system), chain (synthetic multi-contact), file",
                               "ModelCreateFromOptions", types, 3, types[type], &type, nullptr));
   if (type != 2 || help) {
-    SquealOptionsReal("-m", "Mass (kg)", "BuildThreeDof", &p.m, Range::Positive());
-    SquealOptionsReal("-k1", "Spring 1 stiffness projected on x (N/m)", "BuildThreeDof", &p.k1, Range::Positive());
-    SquealOptionsReal("-k2", "Spring 2 stiffness projected on y (N/m)", "BuildThreeDof", &p.k2, Range::Positive());
-    SquealOptionsReal("-k3", "Normal spring stiffness (N/m)", "BuildThreeDof", &p.k3, Range::NonNegative());
+    SquealOptionsReal("-m", "Mass (kg)", "BuildThreeDof", &p.m, Range::Positive(), checks);
+    SquealOptionsReal("-k1", "Spring 1 stiffness projected on x (N/m)", "BuildThreeDof", &p.k1, Range::Positive(), checks);
+    SquealOptionsReal("-k2", "Spring 2 stiffness projected on y (N/m)", "BuildThreeDof", &p.k2, Range::Positive(), checks);
+    SquealOptionsReal("-k3", "Normal spring stiffness (N/m)", "BuildThreeDof", &p.k3, Range::NonNegative(), checks);
     SquealOptionsReal("-kn", "K_nn (N/m); negative: k3 + k1 tan^2(alpha) + k2 tan^2(beta)", "BuildThreeDof", &p.kn,
-                      Range::Any());
+                      Range::Any(), checks);
     SquealOptionsReal("-alpha", "Inclination of spring 1 in the x-n plane (degrees)", "BuildThreeDof", &p.alpha,
-                      Range::OpenBelow(-90, 90));
+                      Range::OpenBelow(-90, 90), checks);
     SquealOptionsReal("-beta", "Inclination of spring 2 in the y-n plane (degrees)", "BuildThreeDof", &p.beta,
-                      Range::OpenBelow(-90, 90));
+                      Range::OpenBelow(-90, 90), checks);
     SquealOptionsReal("-gamma", "Angle from spring axis x to the sliding direction t (degrees)", "BuildThreeDof", &p.gamma,
-                      Range::Any());
-    SquealOptionsReal("-c", "Isotropic viscous damping C = c I (N s/m)", "BuildThreeDof", &p.c, Range::NonNegative());
-    SquealOptionsReal("-fn", "Preload Fn (N), F = (0, 0, -Fn) pushes onto the surface", "BuildThreeDof", &p.Fn, Range::Any());
+                      Range::Any(), checks);
+    SquealOptionsReal("-c", "Isotropic viscous damping C = c I (N s/m)", "BuildThreeDof", &p.c, Range::NonNegative(), checks);
+    SquealOptionsReal("-fn", "Preload Fn (N), F = (0, 0, -Fn) pushes onto the surface", "BuildThreeDof", &p.Fn, Range::Any(), checks);
     PetscCall(PetscOptionsEList("-frame", "DOF frame of the 3-DOF system: sliding (t,b,n; H = I) or spring (x,y,n; H = R^T)",
                                 "BuildThreeDof", frames, 2, frames[frame], &frame, nullptr));
   }
@@ -317,11 +322,13 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
     PetscCall(PetscOptionsInt("-cells", "Number of 3-DOF cells (one contact point each)", "BuildChain", ch.cells, &ch.cells,
                               nullptr));
     SquealOptionsReal("-coupling", "Stiffness of the springs between neighbouring cells (N/m)", "BuildChain", &ch.coupling,
-                      Range::NonNegative());
+                      Range::NonNegative(), checks);
     SquealOptionsReal("-gamma_step", "Change of sliding direction from cell to cell (degrees)", "BuildChain", &ch.gamma_step,
-                      Range::Any());
+                      Range::Any(), checks);
     SquealOptionsReal("-speed_step", "Relative change of sliding speed from cell to cell", "BuildChain", &ch.speed_step,
-                      Range::Any());
+                      Range::Any(), checks);
+    PetscCall(PetscOptionsInt("-contact_every", "Only every k-th cell touches the surface", "BuildChain", ch.contact_every,
+                              &ch.contact_every, nullptr));
   }
   if (type == 2 || help) {
     struct {
@@ -341,6 +348,7 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   PetscCall(PetscOptionsString("-export", "Write the built model (M, C, K, F, contacts.txt) to this directory", "Model::Export",
                                exportdir, exportdir, sizeof(exportdir), nullptr));
   PetscOptionsEnd();
+  PetscCall(checks.Run(comm));
 
   p.law          = law == 0 ? FrictionLaw::Planar : FrictionLaw::Rectilinear;
   p.spring_frame = frame == 1;

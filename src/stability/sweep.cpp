@@ -69,18 +69,20 @@ PetscErrorCode SweepSolver::SetOptionsPrefix(const char *prefix)
 PetscErrorCode SweepSolver::SetFromOptions(PetscReal default_V)
 {
   PetscFunctionBeginUser;
+  OptionChecks checks;
   v_min_ = v_max_ = default_V;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Stability map over mu and V", "SweepSolver");
-  SquealOptionsReal("-mu_min", "Smallest friction coefficient", "SweepSolver", &mu_min_, Range::NonNegative());
-  SquealOptionsReal("-mu_max", "Largest friction coefficient", "SweepSolver", &mu_max_, Range::NonNegative());
+  SquealOptionsReal("-mu_min", "Smallest friction coefficient", "SweepSolver", &mu_min_, Range::NonNegative(), checks);
+  SquealOptionsReal("-mu_max", "Largest friction coefficient", "SweepSolver", &mu_max_, Range::NonNegative(), checks);
   PetscCall(PetscOptionsInt("-mu_n", "Number of mu values (uniform grid)", "SweepSolver", mu_n_, &mu_n_, nullptr));
-  SquealOptionsReal("-v_min", "Smallest sliding speed (m/s); default: the model's V", "SweepSolver", &v_min_, Range::Positive());
-  SquealOptionsReal("-v_max", "Largest sliding speed (m/s); default: -sweep_v_min", "SweepSolver", &v_max_, Range::Positive());
+  SquealOptionsReal("-v_min", "Smallest sliding speed (m/s); default: the model's V", "SweepSolver", &v_min_, Range::Positive(), checks);
+  SquealOptionsReal("-v_max", "Largest sliding speed (m/s); default: -sweep_v_min", "SweepSolver", &v_max_, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-v_n", "Number of V values (uniform grid)", "SweepSolver", v_n_, &v_n_, nullptr));
   SquealOptionsReal("-bisect_tol", "Refine the critical mu by bisection to this width (0: grid interpolation only)",
-                    "SweepSolver", &bisect_tol_, Range::NonNegative());
+                    "SweepSolver", &bisect_tol_, Range::NonNegative(), checks);
   PetscCall(PetscOptionsBool("-monitor", "Print progress (points done) on rank 0", "SweepSolver", monitor_, &monitor_, nullptr));
   PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
   PetscCheck(mu_n_ >= 1 && v_n_ >= 1, comm_, kErrInput, "sweep: -%smu_n and -%sv_n must be >= 1", prefix_.c_str(), prefix_.c_str());
   PetscCheck(mu_max_ >= mu_min_ && v_max_ >= v_min_, comm_, kErrInput, "sweep: empty range (max < min)");
   if (v_n_ == 1) v_max_ = v_min_;

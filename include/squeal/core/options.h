@@ -6,6 +6,7 @@
 #include <petscsys.h>
 
 #include <string>
+#include <vector>
 
 namespace squeal {
 
@@ -31,11 +32,31 @@ PetscErrorCode CheckReal(MPI_Comm comm, const char *prefix, const char *name, Pe
 // only after a solve) are left for a final call.
 PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views);
 
+// Checks collected while an options block is open and run after PetscOptionsEnd(): returning
+// from inside the block would leak what PETSc allocated for it.
+class OptionChecks {
+public:
+  void Add(const char *prefix, const char *name, const PetscReal *v, const Range &r)
+  {
+    items_.push_back({prefix ? prefix : "", name, v, r});
+  }
+  PetscErrorCode Run(MPI_Comm comm) const;
+
+private:
+  struct Item {
+    std::string      prefix, name;
+    const PetscReal *v;
+    Range            r;
+  };
+  std::vector<Item> items_;
+};
+
 } // namespace squeal
 
-// Inside a PetscOptionsBegin()/PetscOptionsEnd() block: read, then validate.
-#define SquealOptionsReal(opt, text, man, ptr, range)                                                      \
-  do {                                                                                                     \
-    PetscCall(PetscOptionsReal(opt, text, man, *(ptr), ptr, NULL));                                        \
-    PetscCall(squeal::CheckReal(PetscOptionsObject->comm, PetscOptionsObject->prefix, opt, *(ptr), range)); \
+// Inside a PetscOptionsBegin()/PetscOptionsEnd() block: read, and queue the validation in
+// `checks` (an OptionChecks), to be run after PetscOptionsEnd().
+#define SquealOptionsReal(opt, text, man, ptr, range, checks)                   \
+  do {                                                                           \
+    PetscCall(PetscOptionsReal(opt, text, man, *(ptr), ptr, NULL));              \
+    (checks).Add(PetscOptionsObject->prefix, opt, ptr, range);                   \
   } while (0)

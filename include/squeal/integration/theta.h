@@ -75,7 +75,8 @@ private:
 
   LocalContactSolver local_;
   Eigen::MatrixXd    W_;
-  Eigen::VectorXd    g0_, wf_, gap_, rhat_;
+  Eigen::VectorXd    g0_, wf_, gap_, rhat_, loc_dq_;
+  VecH               dq_, cq_;
 
   // dense back end
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;

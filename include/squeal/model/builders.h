@@ -32,6 +32,7 @@ struct ChainParams {
   PetscReal      coupling   = 5.0e4;
   PetscReal      gamma_step = 25;  // degrees
   PetscReal      speed_step = 0.2; // relative
+  PetscInt       contact_every = 1; // cells 0, k, 2k, ... touch the surface (and carry the preload)
 };
 PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model);
 

@@ -1,0 +1,206 @@
+#!/usr/bin/python3
+"""Plot the stability map (friction-coefficient sweep) written by squeal.
+
+Reads the /sweep group of one or more squeal results files and draws a two-panel
+figure against the friction coefficient mu:
+
+  top     growth rate sigma = Re(lambda) (1/s) of every eigenvalue, with sigma = 0 marked
+  bottom  frequency omega / (2 pi) (Hz) of every eigenvalue
+
+One colour per file, or per sliding velocity V when a file holds several V values.
+A dashed vertical line marks each critical mu (flutter onset), its value in the legend.
+
+HDF5 layout read (written by `squeal -analyses sweep`):
+  /sweep/mu           (n_mu)
+  /sweep/V            (n_V), attribute units = m/s
+  /sweep/eigenvalues  (n_V, n_mu, k, 2): [..., 0] = sigma (1/s), [..., 1] = omega (rad/s), NaN: absent
+  /sweep/failed       (n_V, n_mu) int, 1 = no steady sliding at that point (skipped)
+  /sweep attributes   critical_mu (n_V, NaN: no crossing), coalescence_frequency (n_V, Hz)
+
+Usage:
+  plot_sweep.py RESULTS.h5 [RESULTS2.h5 ...] -o out.png [--label LABEL ...]
+"""
+
+import argparse
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+try:
+    import h5py  # noqa: E402
+except ImportError:  # pragma: no cover
+    sys.exit("plot_sweep.py: error: the h5py module is required (apt-get install python3-h5py)")
+
+PROG = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "plot_sweep.py"
+
+
+def fail(msg):
+    print(f"{PROG}: error: {msg}", file=sys.stderr)
+    sys.exit(1)
+
+
+def _attr_array(group, name, n):
+    """Attribute `name` of `group` as a float array of length n (NaN when absent)."""
+    if name not in group.attrs:
+        return np.full(n, np.nan)
+    a = np.atleast_1d(np.asarray(group.attrs[name], dtype=float)).ravel()
+    if a.size == 1 and n > 1:
+        a = np.full(n, a[0])
+    if a.size != n:
+        out = np.full(n, np.nan)
+        out[: min(n, a.size)] = a[: min(n, a.size)]
+        return out
+    return a
+
+
+def read_sweep(path):
+    """Return a list of dicts, one per V value of the sweep in `path`."""
+    if not os.path.isfile(path):
+        fail(f"results file '{path}' not found")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        fail(f"cannot open '{path}' as HDF5: {e}")
+    with f:
+        if "sweep" not in f or not isinstance(f["sweep"], h5py.Group):
+            fail(f"'{path}' has no /sweep group (run squeal with -analyses sweep)")
+        g = f["sweep"]
+        for name in ("mu", "eigenvalues"):
+            if name not in g:
+                fail(f"'{path}': /sweep/{name} is missing")
+        mu = np.asarray(g["mu"][()], dtype=float).ravel()
+        ev = np.asarray(g["eigenvalues"][()], dtype=float)
+        if ev.ndim == 3:  # single V written without the leading axis
+            ev = ev[np.newaxis]
+        if ev.ndim != 4 or ev.shape[-1] != 2 or ev.shape[1] != mu.size:
+            fail(f"'{path}': /sweep/eigenvalues has shape {ev.shape}, expected (n_V, {mu.size}, k, 2)")
+        n_v = ev.shape[0]
+        if "V" in g:
+            V = np.asarray(g["V"][()], dtype=float).ravel()
+            v_units = g["V"].attrs.get("units", b"m/s")
+            v_units = v_units.decode() if isinstance(v_units, bytes) else str(v_units)
+        else:
+            V, v_units = np.full(n_v, np.nan), "m/s"
+        if V.size != n_v:
+            fail(f"'{path}': /sweep/V has {V.size} value(s) but eigenvalues hold {n_v}")
+        failed = np.zeros((n_v, mu.size), dtype=bool)
+        if "failed" in g:
+            fl = np.asarray(g["failed"][()]).reshape(n_v, mu.size)
+            failed = fl != 0
+        mu_c = _attr_array(g, "critical_mu", n_v)
+        f_c = _attr_array(g, "coalescence_frequency", n_v)
+    runs = []
+    for i in range(n_v):
+        e = ev[i].copy()
+        e[failed[i]] = np.nan
+        runs.append(dict(path=path, mu=mu, V=V[i], V_units=v_units, sigma=e[..., 0],
+                         omega=e[..., 1], failed=failed[i], mu_c=mu_c[i], f_c=f_c[i]))
+    return runs
+
+
+def fmt_num(x):
+    return f"{x:.4g}"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(
+        prog=PROG,
+        description="Plot growth rate and frequency of every eigenvalue against the friction "
+                    "coefficient from the /sweep group of squeal results files.")
+    ap.add_argument("files", nargs="+", metavar="RESULTS.h5", help="squeal results file(s) with a /sweep group")
+    ap.add_argument("-o", "--output", required=True, metavar="OUT.png", help="output image (PNG)")
+    ap.add_argument("--label", action="append", default=[], metavar="LABEL",
+                    help="legend label, once per file in order (default: file name and V)")
+    ap.add_argument("--title", default=None, help="figure title (default: none)")
+    ap.add_argument("--dpi", type=int, default=120, help="resolution (default: 120)")
+    args = ap.parse_args(argv)
+
+    if args.label and len(args.label) != len(args.files):
+        fail(f"got {len(args.label)} --label value(s) for {len(args.files)} file(s); give one per file or none")
+
+    series = []
+    for j, path in enumerate(args.files):
+        runs = read_sweep(path)
+        for r in runs:
+            vtxt = f"V = {r['V']:g} {r['V_units']}" if np.isfinite(r["V"]) else ""
+            if args.label:
+                lab = args.label[j] + (f", {vtxt}" if len(runs) > 1 and vtxt else "")
+            else:
+                stem = os.path.splitext(os.path.basename(path))[0]
+                lab = f"{stem}, {vtxt}" if vtxt else stem
+            r["label"] = lab
+            series.append(r)
+
+    plt.style.use("default")
+    plt.rcParams.update({
+        "font.size": 10, "axes.titlesize": 10, "axes.labelsize": 10, "legend.fontsize": 8.5,
+        "axes.spines.top": False, "axes.spines.right": False,
+        "axes.grid": True, "grid.color": "0.88", "grid.linewidth": 0.6,
+    })
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+
+    fig, (ax_s, ax_f) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 6.2),
+                                     gridspec_kw=dict(hspace=0.08))
+    ax_s.axhline(0.0, color="0.25", lw=0.9, zorder=1)
+    many = len(series) > 1
+    mu_lo, mu_hi = np.inf, -np.inf
+    for n, r in enumerate(series):
+        c = colours[n % len(colours)]
+        mu = r["mu"]
+        mu_lo, mu_hi = min(mu_lo, np.nanmin(mu)), max(mu_hi, np.nanmax(mu))
+        k = r["sigma"].shape[1]
+        ms = 2.6 if many else 3.0
+        for s in range(k):
+            sig, om = r["sigma"][:, s], r["omega"][:, s]
+            ax_s.plot(mu, sig, ls="none", marker="o", ms=ms, mew=0, color=c, alpha=0.85,
+                      label=r["label"] if s == 0 else None, zorder=3)
+            ax_f.plot(mu, om / (2.0 * np.pi), ls="none", marker="o", ms=ms, mew=0, color=c,
+                      alpha=0.85, zorder=3)
+        if r["failed"].any():  # mark points without steady sliding on the sigma = 0 line
+            ax_s.plot(mu[r["failed"]], np.zeros(r["failed"].sum()), ls="none", marker="x", ms=4,
+                      color=c, alpha=0.7, label=f"{r['label']}: no steady sliding", zorder=2)
+        if np.isfinite(r["mu_c"]):
+            txt = f"$\\mu_c$ = {r['mu_c']:.4f}"
+            if np.isfinite(r["f_c"]):
+                txt += f" ($f$ = {r['f_c']:.1f} Hz)"
+            for ax in (ax_s, ax_f):
+                ax.axvline(r["mu_c"], color=c, ls="--", lw=1.1, alpha=0.9, zorder=2,
+                           label=txt if ax is ax_s else None)
+            if np.isfinite(r["f_c"]):
+                ax_f.plot([r["mu_c"]], [r["f_c"]], marker="D", ms=5, mfc="white", mec=c, mew=1.3, zorder=4)
+
+    ax_s.set_ylabel(r"growth rate $\sigma$ = Re $\lambda$ (1/s)")
+    ax_f.set_ylabel(r"frequency $\omega / 2\pi$ (Hz)")
+    ax_f.set_xlabel(r"friction coefficient $\mu$ (–)")
+    if np.isfinite(mu_lo) and mu_hi > mu_lo:
+        ax_f.set_xlim(mu_lo, mu_hi)
+    # Shade the unstable half (sigma > 0) lightly.
+    ylo, yhi = ax_s.get_ylim()
+    if yhi > 0:
+        ax_s.axhspan(0, yhi, color="#d62728", alpha=0.05, lw=0, zorder=0)
+        ax_s.text(0.01, 0.97, "unstable", transform=ax_s.transAxes, ha="left", va="top",
+                  fontsize=8, color="#b22222")
+    ax_s.set_ylim(ylo, yhi)
+    ax_s.legend(loc="lower left", frameon=True, framealpha=0.92, edgecolor="0.8", markerscale=2.0)
+    if args.title:
+        ax_s.set_title(args.title)
+    for ax in (ax_s, ax_f):
+        ax.set_axisbelow(True)
+    fig.align_ylabels((ax_s, ax_f))
+
+    out_dir = os.path.dirname(os.path.abspath(args.output))
+    if not os.path.isdir(out_dir):
+        fail(f"output directory '{out_dir}' does not exist")
+    fig.savefig(args.output, dpi=args.dpi, bbox_inches="tight")
+    plt.close(fig)
+    print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
