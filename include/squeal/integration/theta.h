@@ -10,10 +10,12 @@
 //   (S5) w_f = H^T v_f,  g~^i_n = H_n^T (U^i + h(1-theta) dU^i) + g0
 //   (S6-7) local fixed point on r (LocalContactSolver)
 //   (S8) dU^{i+1} = v_f + h Y r,   (S9) U^{i+1} = U^i + h (theta dU^{i+1} + (1-theta) dU^i)
-// Two back ends with identical equations: "dense" (one rank, N <= -theta_dense_max; A^-1 B,
-// A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written loop
-// would do) and "sparse" (distributed AIJ, A factorised once by KSP/PC, MUMPS LU by default,
-// options -theta_ksp_*, -theta_pc_*). Nothing is allocated per step or per fixed-point pass.
+// Two back ends with identical equations: "dense" (one rank, N <= -theta_dense_max, default 200;
+// A^-1 B, A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written
+// loop would do) and "sparse" (distributed AIJ, A factorised once by KSP/PC: PETSc's Cholesky
+// on one rank, MUMPS LU on several; options -theta_ksp_*, -theta_pc_*). The dense matrices are N x N, so
+// the step becomes memory-bound past a few hundred DOFs: measured crossover between N = 90 and
+// N = 300 (benchmarks/bench_step.cpp). Nothing is allocated per step or per fixed-point pass.
 #pragma once
 
 #include "squeal/contact/local_solver.h"
@@ -68,7 +70,7 @@ private:
   MPI_Comm     comm_;
   std::string  prefix_   = "theta_";
   PetscReal    theta_    = 0.5, h_ = 0, fp_tol_ = 1e-12, rho_scale_ = 1.0, r_ref_ = 1.0;
-  PetscInt     fp_max_it_ = 500, dense_max_ = 2000;
+  PetscInt     fp_max_it_ = 500, dense_max_ = 200;
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
