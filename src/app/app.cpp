@@ -145,15 +145,15 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(out.Open(comm, output));
   PetscCall(WriteModelInfo(model, out));
 
+  SlidingEquilibrium eq;
+  StabilityResult    res;
   if (req.stability) {
-    SlidingEquilibrium eq;
     PetscCall(PetscLogStagePush(st_eq));
     PetscCall(eqs.Solve(model, eq));
     PetscCall(PetscLogStagePop());
     PetscCall(eqs.View(model, eq, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(WriteEquilibrium(model, eq, out));
 
-    StabilityResult res;
     PetscCall(PetscLogStagePush(st_stab));
     PetscCall(stab.Solve(model, eq, res));
     PetscCall(PetscLogStagePop());
@@ -167,17 +167,6 @@ PetscErrorCode RunApp(int argc, char **argv)
       PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,
                             (double)m.Frequency(), (double)m.Period(), (double)m.sigma));
     }
-    if (req.transient) {
-      TransientResult tr;
-      PetscCall(PetscLogStagePush(st_transient));
-      PetscErrorCode terr = transient.Run(model, eq, res, theta, tr);
-      PetscCall(PetscLogStagePop());
-      // Whatever was recorded is written, also when the run stopped early.
-      PetscCall(transient.Write(tr, out));
-      PetscCall(terr);
-      PetscCall(theta.View(PETSC_VIEWER_STDOUT_(comm)));
-      PetscCall(transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
-    }
   }
   if (req.sweep) {
     SweepResult sr;
@@ -186,6 +175,17 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(PetscLogStagePop());
     PetscCall(sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(sweep.Write(sr, out));
+  }
+  if (req.transient) {
+    TransientResult tr;
+    PetscCall(PetscLogStagePush(st_transient));
+    PetscErrorCode terr = transient.Run(model, eq, res, theta, tr);
+    PetscCall(PetscLogStagePop());
+    // Whatever was recorded is written, also when the run stopped early.
+    PetscCall(transient.Write(tr, out));
+    PetscCall(terr);
+    PetscCall(theta.View(PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
   }
   PetscCall(out.Close());
   PetscCall(PetscPrintf(comm, "results written to %s\n", output));

@@ -298,11 +298,14 @@ PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer v
                                      : s.frac_separated > 0                   ? "separation/slip"
                                      : s.frac_stuck > 0                       ? "stick/slip"
                                                                               : "pure sliding"));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "mean fixed-point passes per step %.2f", (double)s.mean_fp_iterations));
   if (s.fp_capped)
-    PetscCall(PetscViewerASCIIPrintf(viewer, "; pass limit hit in %" PetscInt_FMT " step(s), first at step %" PetscInt_FMT " (residual %.2e)",
-                                     s.fp_capped, s.first_capped_step, (double)s.first_capped_residual));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "\nenergy balance defect %.2e of max energy\n", (double)s.energy_defect));
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "mean fixed-point passes per step %.2f; pass limit hit in %" PetscInt_FMT
+                                     " step(s), first at step %" PetscInt_FMT " (residual %.2e)\n",
+                                     (double)s.mean_fp_iterations, s.fp_capped, s.first_capped_step,
+                                     (double)s.first_capped_residual));
+  else PetscCall(PetscViewerASCIIPrintf(viewer, "mean fixed-point passes per step %.2f\n", (double)s.mean_fp_iterations));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "energy balance defect %.2e of max energy\n", (double)s.energy_defect));
   PetscCall(PetscViewerASCIIPopTab(viewer));
   PetscFunctionReturn(0);
 }
