@@ -39,6 +39,7 @@ import csv
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -170,6 +171,8 @@ def run_squeal(squeal, scene, periods, steps, tol, keep_every, h5, repeat, summa
     if not summary:
         return {"wall": min(walls), "walls": walls, "cmd": cmd}
     s = parse_summary(p.stdout, cmd)
+    if "pass limit hit" in p.stdout:
+        warn(f"the contact fixed point hit its pass limit in {' '.join(cmd)}")
     full = read_full_precision(h5)
     if not full["complete"]:
         warn(f"the run {' '.join(cmd)} is marked incomplete")
@@ -228,16 +231,15 @@ def plot(rows, steps, out_png, title_extra, fixed_wall=None):
                 continue
             col = CASE_COLOURS[case]
             ax.plot([r["wall_s"] for r in rs], [r[key] for r in rs], "-", marker=marker, color=col, ms=7, lw=1.3)
+            right = case == CASES[0][0]  # case 1 labelled to the right of its points, case 2 to the left
             for r in rs:
                 ax.annotate(f"{r['steps_per_period']}", (r["wall_s"], r[key]), textcoords="offset points",
-                            xytext=(6, 3), fontsize=8, color=col)
+                            xytext=(7, 2) if right else (-7, -9), ha="left" if right else "right", fontsize=8,
+                            color=col)
             tr = [r for r in rows if r["case"] == case and r["fp_tol"] != REF_TOL and r[key] > 0]
             for r in tr:
-                loose = r["fp_tol"] > 1e-8
-                ax.plot(r["wall_s"], r[key], marker="^" if loose else "v", ls="", ms=9, mfc="none", mec=col,
-                        mew=1.5)
-                ax.annotate(f"{r['fp_tol']:g}", (r["wall_s"], r[key]), textcoords="offset points",
-                            xytext=(0, -17 if loose else 9), ha="center", fontsize=7.5, color=col)
+                ax.plot(r["wall_s"], r[key], marker="^" if r["fp_tol"] > 1e-8 else "v", ls="", ms=9, mfc="none",
+                        mec=col, mew=1.5)
         if fixed_wall:
             ax.axvline(fixed_wall, color="0.45", ls=":", lw=1.2)
         ax.set_xscale("log")
@@ -257,10 +259,10 @@ def plot(rows, steps, out_png, title_extra, fixed_wall=None):
                 Line2D([], [], color="0.3", marker="s", ls="", label="amplitude error"),
                 Line2D([], [], color="0.3", marker="^", mfc="none", ls="", ms=8,
                        label=f"{TOL_STEPS} steps/period, fixed-point tol 1e-6"),
-                Line2D([], [], color="0.3", marker="v", mfc="none", ls="", ms=8, label="... tol 1e-9")]
+                Line2D([], [], color="0.3", marker="v", mfc="none", ls="", ms=8, label=f"{TOL_STEPS} steps/period, tol 1e-9")]
     if fixed_wall:
         handles.append(Line2D([], [], color="0.45", ls=":", lw=1.2,
-                              label=f"fixed cost of a run ({fixed_wall:.2f} s: start-up, equilibrium, stability)"))
+                              label=f"fixed cost of a run ({fixed_wall:.2f} s, 1 period)"))
     fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=8.5, frameon=False,
                bbox_to_anchor=(0.5, 0.0))
     # (c) error vs steps per period with slope guides.
@@ -361,12 +363,19 @@ def main():
     def keep_for(s):
         return max(1, s // args.records_per_period)
 
-    print(f"squeal: {squeal}")
+    print(f"squeal: {squeal} (the study runs a private copy of it)")
     print(f"duration {periods:g} periods of the linear mode; steps per period {', '.join(map(str, steps))}; "
           f"tolerances {', '.join(f'{t:g}' for t in TOLS)} at {TOL_STEPS}; reference {ref_steps} steps, tol {REF_TOL:g}; "
           f"keep_every = steps // {args.records_per_period}; wall time = min over {max(1, args.repeat)} run(s)")
     rows, orders = [], {}
     with tempfile.TemporaryDirectory(prefix="squeal_wp_") as tmp:
+        # Run a private copy, so that a rebuild of the executable during the study cannot mix two builds.
+        snap = os.path.join(tmp, "squeal")
+        try:
+            shutil.copy2(squeal, snap)
+        except OSError as e:
+            fail(f"cannot copy '{squeal}' to '{snap}': {e}")
+        squeal = snap
         # The fixed cost of one run (start-up, equilibrium, stability, output), a 1-period transient.
         r0 = run_squeal(squeal, scenes[CASES[0][0]], 1, min(steps), REF_TOL, 1, os.path.join(tmp, "fixed.h5"),
                         max(3, args.repeat), summary=False)

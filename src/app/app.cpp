@@ -1,6 +1,7 @@
 #include "squeal/app/app.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
+#include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
 #include "squeal/io/h5.h"
 #include "squeal/model/builders.h"
@@ -20,10 +21,10 @@ const char kHelp[] = "squeal: friction-induced self-excited vibration (brake squ
 
 namespace {
 
-const char *const kLaterAnalyses[] = {"energy", "shooting"};
+const char *const kLaterAnalyses[] = {"shooting"};
 
 struct Request {
-  bool stability = false, sweep = false, transient = false;
+  bool stability = false, sweep = false, transient = false, energy = false;
 };
 
 PetscErrorCode ReadScene(int argc, char **argv)
@@ -49,9 +50,10 @@ PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
     if (a == "stability") req.stability = true;
     else if (a == "sweep") req.sweep = true;
     else if (a == "transient") req.transient = req.stability = true; // starts from a mode
+    else if (a == "energy") req.energy = req.stability = true;
     else {
       const bool later = std::any_of(std::begin(kLaterAnalyses), std::end(kLaterAnalyses), [&](const char *x) { return a == x; });
-      SETERRQ(PETSC_COMM_WORLD, kErrInput, "%s analysis '%s' in -analyses (available: stability, sweep, transient)",
+      SETERRQ(PETSC_COMM_WORLD, kErrInput, "%s analysis '%s' in -analyses (available: stability, sweep, transient, energy)",
               later ? "not yet implemented:" : "unknown", a.c_str());
     }
   }
@@ -91,7 +93,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscInt       nnames = 16;
   PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE;
   Request        req;
-  PetscLogStage  st_eq, st_stab, st_sweep, st_transient;
+  PetscLogStage  st_eq, st_stab, st_sweep, st_transient, st_energy;
   PetscFunctionBeginUser;
   PetscCall(ReadScene(argc, argv));
   PetscCall(PetscOptionsHasHelp(nullptr, &help));
@@ -99,11 +101,12 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(PetscLogStageRegister("Stability", &st_stab));
   PetscCall(PetscLogStageRegister("Sweep", &st_sweep));
   PetscCall(PetscLogStageRegister("Transient", &st_transient));
+  PetscCall(PetscLogStageRegister("Energy", &st_energy));
 
   const std::string default_output = DefaultOutput();
   PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
   PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
-  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient", "RunApp", names, &nnames, &set));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy", "RunApp", names, &nnames, &set));
   std::snprintf(output, sizeof(output), "%s", default_output.c_str());
   PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
                                sizeof(output), nullptr));
@@ -133,6 +136,8 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(theta.SetFromOptions());
   TransientAnalysis transient(comm);
   PetscCall(transient.SetFromOptions());
+  EnergyAnalysis energy(comm);
+  PetscCall(energy.SetFromOptions());
   if (help) PetscFunctionReturn(0);
   PetscCall(CheckUnusedOptions(comm, true));
 
@@ -175,6 +180,14 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(PetscLogStagePop());
     PetscCall(sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(sweep.Write(sr, out));
+  }
+  if (req.energy) {
+    EnergyEstimate est;
+    PetscCall(PetscLogStagePush(st_energy));
+    PetscCall(energy.Estimate(model, eq, res, est));
+    PetscCall(PetscLogStagePop());
+    PetscCall(energy.View(est, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(energy.Write(est, out));
   }
   if (req.transient) {
     TransientResult tr;

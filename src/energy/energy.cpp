@@ -1,0 +1,229 @@
+#include "squeal/energy/energy.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+
+#include <cmath>
+
+namespace squeal {
+
+PetscErrorCode EnergyAnalysis::SetFromOptions()
+{
+  OptionChecks checks;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm_, "energy_", "Energy estimate of the limit-cycle amplitude", "EnergyAnalysis");
+  PetscCall(PetscOptionsInt("-mode", "Mode to estimate (index in the eigenvalue table; -1: most unstable)", "EnergyAnalysis",
+                            mode, &mode, nullptr));
+  PetscCall(PetscOptionsInt("-n_scan", "Points of the amplitude scan", "EnergyAnalysis", n_scan, &n_scan, nullptr));
+  PetscCall(PetscOptionsInt("-samples", "Time samples per period for the mean powers", "EnergyAnalysis", samples, &samples, nullptr));
+  PetscCall(PetscOptionsInt("-bisections", "Bisection halvings after the scan", "EnergyAnalysis", bisections, &bisections, nullptr));
+  SquealOptionsReal("-q_max_factor", "Scan up to this multiple of the first lift-off amplitude", "EnergyAnalysis", &q_max_factor,
+                    Range::Positive(), checks);
+  PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
+  PetscCheck(n_scan >= 2 && samples >= 8 && bisections >= 0, comm_, kErrInput,
+             "energy: need -energy_n_scan >= 2, -energy_samples >= 8, -energy_bisections >= 0");
+  PetscFunctionReturn(0);
+}
+
+PetscReal EnergyAnalysis::Reactions(PetscReal q) const
+{
+  const ContactSet &cs          = *cs_;
+  const bool        rectilinear = cs.law == FrictionLaw::Rectilinear;
+  PetscReal         sum         = 0;
+  for (size_t k = 0; k < cos_.size(); ++k) {
+    const PetscReal c = cos_[k], s = sin_[k];
+    for (size_t p = 0; p < N_.size(); ++p) {
+      // Re(z e^{i w t}) = Re z cos - Im z sin; velocity Re(i w z e^{i w t}) = -w (Re z sin + Im z cos).
+      const PetscReal rn = std::max(0.0, N_[p] + q * (psi_[p].real() * c - psi_[p].imag() * s));
+      if (rn == 0) continue;
+      const PetscReal ut = -q * omega_ * (phit_[p].real() * s + phit_[p].imag() * c);
+      const PetscReal ub = -q * omega_ * (phib_[p].real() * s + phib_[p].imag() * c);
+      const PetscReal st = cs.Speed((PetscInt)p) - ut; // surface velocity relative to the structure
+      if (rectilinear) {
+        sum += cs.mu * rn * (st > 0 ? 1.0 : (st < 0 ? -1.0 : 0.0)) * ut;
+      } else {
+        const PetscReal m = std::hypot(st, ub);
+        if (m > 0) sum += cs.mu * rn * (st * ut - ub * ub) / m;
+      }
+    }
+  }
+  return sum / cos_.size();
+}
+
+PetscReal EnergyAnalysis::PowerBalance(PetscReal q) const { return Reactions(q) - 0.5 * q * q * omega_ * omega_ * cphi_; }
+
+PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab,
+                                        EnergyEstimate &est)
+{
+  const ContactSet &cs = model.contacts;
+  PetscFunctionBeginUser;
+  est       = EnergyEstimate{};
+  est.mode  = mode >= 0 ? mode : (stab.unstable.empty() ? -1 : stab.unstable[0]);
+  if (est.mode < 0) PetscFunctionReturn(0);
+  PetscCheck(est.mode < (PetscInt)stab.modes.size() && stab.modes[est.mode].Oscillatory(), comm_, kErrInput,
+             "energy: mode %" PetscInt_FMT " is not an oscillatory mode of the eigenvalue table", est.mode);
+  const Mode &m = stab.modes[est.mode];
+  PetscCheck(m.phi_re, comm_, kErrInput, "energy: mode shapes are needed (-stab_modes)");
+  est.omega = omega_ = m.omega;
+  est.sigma          = m.sigma;
+  est.T0             = 2 * PETSC_PI / m.omega;
+  cs_                = &cs;
+
+  // phi^H C phi and (-omega^2 M + i omega C + K) phi, split in real and imaginary parts.
+  VecH a, b, t1;
+  PetscCall(VecDuplicate(m.phi_re, a.out()));
+  PetscCall(VecDuplicate(m.phi_re, b.out()));
+  PetscCall(VecDuplicate(m.phi_re, t1.out()));
+  cphi_ = 0;
+  PetscCall(MatMult(model.K, m.phi_re, a));
+  PetscCall(MatMult(model.M, m.phi_re, t1));
+  PetscCall(VecAXPY(a, -m.omega * m.omega, t1));
+  PetscCall(MatMult(model.K, m.phi_im, b));
+  PetscCall(MatMult(model.M, m.phi_im, t1));
+  PetscCall(VecAXPY(b, -m.omega * m.omega, t1));
+  if (model.HasDamping()) {
+    PetscScalar d1, d2;
+    PetscCall(MatMult(model.C, m.phi_im, t1));
+    PetscCall(VecDot(m.phi_im, t1, &d2));
+    PetscCall(VecAXPY(a, -m.omega, t1));
+    PetscCall(MatMult(model.C, m.phi_re, t1));
+    PetscCall(VecDot(m.phi_re, t1, &d1));
+    PetscCall(VecAXPY(b, m.omega, t1));
+    cphi_ = PetscRealPart(d1 + d2);
+  }
+  std::vector<PetscReal> la, lb, pr, pi;
+  PetscCall(cs.LocalComponents(a, la));
+  PetscCall(cs.LocalComponents(b, lb));
+  PetscCall(cs.LocalComponents(m.phi_re, pr));
+  PetscCall(cs.LocalComponents(m.phi_im, pi));
+  N_.clear();
+  psi_.clear();
+  phit_.clear();
+  phib_.clear();
+  est.q_sep = PETSC_INFINITY;
+  for (PetscInt c : eq.active) {
+    PetscReal D = 0; // h_n^T h_n
+    for (const ContactNode &nd : cs.points[c].nodes) D += nd.weight * nd.weight * cs.points[c].n.squaredNorm();
+    N_.push_back(eq.N[c]);
+    psi_.emplace_back(la[3 * c + kN] / D, lb[3 * c + kN] / D);
+    phit_.emplace_back(pr[3 * c + kT], pi[3 * c + kT]);
+    phib_.emplace_back(pr[3 * c + kB], pi[3 * c + kB]);
+    if (std::abs(psi_.back()) > 0) est.q_sep = std::min(est.q_sep, eq.N[c] / std::abs(psi_.back()));
+  }
+  // Without normal reaction fluctuations lift-off never bounds the scan: use the amplitude at
+  // which the tangential velocity reaches the surface speed (the stick side saturation).
+  if (!std::isfinite(est.q_sep)) {
+    PetscReal best = PETSC_INFINITY;
+    for (size_t p = 0; p < phit_.size(); ++p)
+      if (std::abs(phit_[p]) > 0) best = std::min(best, cs.Speed(eq.active[p]) / (m.omega * std::abs(phit_[p])));
+    est.q_sep = std::isfinite(best) ? best : 1.0;
+  }
+  cos_.resize(samples);
+  sin_.resize(samples);
+  for (PetscInt k = 0; k < samples; ++k) {
+    cos_[k] = std::cos(2 * PETSC_PI * k / samples);
+    sin_[k] = std::sin(2 * PETSC_PI * k / samples);
+  }
+
+  const PetscReal q_max = q_max_factor * est.q_sep;
+  est.q.resize(n_scan);
+  est.P_damping.resize(n_scan);
+  est.P_reactions.resize(n_scan);
+  PetscInt crossing = -1;
+  for (PetscInt k = 0; k < n_scan; ++k) {
+    const PetscReal q  = (k + 1) * q_max / n_scan;
+    est.q[k]           = q;
+    est.P_damping[k]   = 0.5 * q * q * omega_ * omega_ * cphi_;
+    est.P_reactions[k] = Reactions(q);
+    if (crossing < 0 && k > 0 && est.P_reactions[k - 1] - est.P_damping[k - 1] > 0 && est.P_reactions[k] - est.P_damping[k] <= 0)
+      crossing = k - 1;
+  }
+  est.found = crossing >= 0;
+  if (est.found) {
+    PetscReal lo = est.q[crossing], hi = est.q[crossing + 1];
+    for (PetscInt i = 0; i < bisections; ++i) {
+      const PetscReal mid = 0.5 * (lo + hi);
+      (PowerBalance(mid) > 0 ? lo : hi) = mid;
+    }
+    est.q0 = 0.5 * (lo + hi);
+    // (7.5): the phase puts the normalising component at its maximum, on the surface (phi_n = 0).
+    PetscCall(VecDuplicate(eq.U, est.U0.out()));
+    PetscCall(VecWAXPY(est.U0, est.q0, m.phi_re, eq.U));
+    PetscCall(VecDuplicate(eq.U, est.dU0.out()));
+    PetscCall(VecCopy(m.phi_im, est.dU0));
+    PetscCall(VecScale(est.dU0, -est.q0 * m.omega));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode EnergyAnalysis::View(const EnergyEstimate &est, PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  if (est.mode < 0) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "energy estimate: sliding equilibrium is stable: no self-excited vibration expected\n"));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(PetscViewerASCIIPrintf(viewer, "energy estimate for mode %" PetscInt_FMT " (f = %.4f Hz, sigma = %.4f 1/s):\n", est.mode,
+                                   (double)(est.omega / (2 * PETSC_PI)), (double)est.sigma));
+  PetscCall(PetscViewerASCIIPushTab(viewer));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "first lift-off amplitude q_sep = %.6e, scan up to %.4g q_sep\n", (double)est.q_sep,
+                                   (double)q_max_factor));
+  if (est.found)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "power balance at q0 = %.6e (%.3f q_sep); shooting guess T0 = %.7f s\n", (double)est.q0,
+                                     (double)(est.q0 / est.q_sep), (double)est.T0));
+  else
+    PetscCall(PetscViewerASCIIPrintf(viewer, "no balance in the scanned range: reaction power never falls below damping power\n"));
+  PetscCall(PetscViewerASCIIPopTab(viewer));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode EnergyAnalysis::Write(const EnergyEstimate &est, io::H5Writer &out) const
+{
+  PetscFunctionBeginUser;
+  if (est.mode < 0) {
+    PetscCall(out.WriteAttribute("/energy", "stable", (PetscInt)1));
+    PetscFunctionReturn(0);
+  }
+  const hsize_t n = est.q.size();
+  PetscCall(out.WriteArray("/energy/q", {n}, est.q.data()));
+  PetscCall(out.WriteArray("/energy/P_damping", {n}, est.P_damping.data()));
+  PetscCall(out.WriteArray("/energy/P_reactions", {n}, est.P_reactions.data()));
+  PetscCall(out.WriteAttribute("/energy/P_damping", "units", "W"));
+  PetscCall(out.WriteAttribute("/energy/P_reactions", "units", "W"));
+  PetscCall(out.WriteAttribute("/energy/q", "units", "m (modal amplitude, largest tangential contact component of phi = 1)"));
+  PetscCall(out.WriteAttribute("/energy", "mode", est.mode));
+  PetscCall(out.WriteAttribute("/energy", "q_sep", est.q_sep));
+  PetscCall(out.WriteAttribute("/energy", "T0", est.T0));
+  PetscCall(out.WriteAttribute("/energy", "found", (PetscInt)est.found));
+  if (est.found) {
+    PetscCall(out.WriteAttribute("/energy", "q0", est.q0));
+    Vec  parts[2] = {est.U0, est.dU0};
+    PetscInt n0;
+    PetscCall(VecGetSize(est.U0, &n0));
+    // Z0 = (U0, dU0) as one 2N dataset, gathered like the other arrays.
+    std::vector<PetscReal> z;
+    for (Vec v : parts) {
+      VecScatter         sc;
+      Vec                all;
+      const PetscScalar *a;
+      PetscCall(VecScatterCreateToZero(v, &sc, &all));
+      PetscCall(VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+      PetscInt nl;
+      PetscCall(VecGetLocalSize(all, &nl));
+      PetscCall(VecGetArrayRead(all, &a));
+      for (PetscInt i = 0; i < nl; ++i) z.push_back(PetscRealPart(a[i]));
+      PetscCall(VecRestoreArrayRead(all, &a));
+      PetscCall(VecDestroy(&all));
+      PetscCall(VecScatterDestroy(&sc));
+    }
+    PetscCall(out.WriteArray("/energy/Z0", {(hsize_t)(2 * n0)}, z.data()));
+    PetscCall(out.WriteAttribute("/energy/Z0", "layout", "(U, dU)"));
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
