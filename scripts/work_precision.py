@@ -222,7 +222,8 @@ def plot(rows, steps, out_png, title_extra, fixed_wall=None):
                              gridspec_kw={"width_ratios": (1, 1, 1), "wspace": 0.27})
     kinds = (("err_period", "relative error of the period", "o"),
              ("err_amplitude", "relative error of the max peak-to-peak amplitude", "s"))
-    walls = [r["wall_s"] for r in rows] + ([fixed_wall] if fixed_wall else [])
+    walls = [r["wall_s"] for r in rows if r["err_period"] > 0 or r["err_amplitude"] > 0]
+    walls += [fixed_wall] if fixed_wall else []
     for ax, (key, label, marker) in zip(axes[:2], kinds):
         for case, _, clabel in CASES:
             rs = [r for r in rows if r["case"] == case and r["fp_tol"] == REF_TOL and r[key] > 0]

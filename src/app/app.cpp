@@ -3,6 +3,7 @@
 #include "squeal/core/options.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
+#include "squeal/shooting/shooting.h"
 #include "squeal/io/h5.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/equilibrium.h"
@@ -21,10 +22,9 @@ const char kHelp[] = "squeal: friction-induced self-excited vibration (brake squ
 
 namespace {
 
-const char *const kLaterAnalyses[] = {"shooting"};
 
 struct Request {
-  bool stability = false, sweep = false, transient = false, energy = false;
+  bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
 };
 
 PetscErrorCode ReadScene(int argc, char **argv)
@@ -51,10 +51,10 @@ PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
     else if (a == "sweep") req.sweep = true;
     else if (a == "transient") req.transient = req.stability = true; // starts from a mode
     else if (a == "energy") req.energy = req.stability = true;
+    else if (a == "shooting") req.shooting = req.energy = req.stability = true; // starts from the estimate
     else {
-      const bool later = std::any_of(std::begin(kLaterAnalyses), std::end(kLaterAnalyses), [&](const char *x) { return a == x; });
-      SETERRQ(PETSC_COMM_WORLD, kErrInput, "%s analysis '%s' in -analyses (available: stability, sweep, transient, energy)",
-              later ? "not yet implemented:" : "unknown", a.c_str());
+      SETERRQ(PETSC_COMM_WORLD, kErrInput, "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting)",
+              a.c_str());
     }
   }
   PetscFunctionReturn(0);
@@ -93,7 +93,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscInt       nnames = 16;
   PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE;
   Request        req;
-  PetscLogStage  st_eq, st_stab, st_sweep, st_transient, st_energy;
+  PetscLogStage  st_eq, st_stab, st_sweep, st_transient, st_energy, st_shooting;
   PetscFunctionBeginUser;
   PetscCall(ReadScene(argc, argv));
   PetscCall(PetscOptionsHasHelp(nullptr, &help));
@@ -102,11 +102,12 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(PetscLogStageRegister("Sweep", &st_sweep));
   PetscCall(PetscLogStageRegister("Transient", &st_transient));
   PetscCall(PetscLogStageRegister("Energy", &st_energy));
+  PetscCall(PetscLogStageRegister("Shooting", &st_shooting));
 
   const std::string default_output = DefaultOutput();
   PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
   PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
-  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy", "RunApp", names, &nnames, &set));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting", "RunApp", names, &nnames, &set));
   std::snprintf(output, sizeof(output), "%s", default_output.c_str());
   PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
                                sizeof(output), nullptr));
@@ -138,6 +139,8 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(transient.SetFromOptions());
   EnergyAnalysis energy(comm);
   PetscCall(energy.SetFromOptions());
+  Shooting shooting(comm);
+  PetscCall(shooting.SetFromOptions());
   if (help) PetscFunctionReturn(0);
   PetscCall(CheckUnusedOptions(comm, true));
 
@@ -188,6 +191,25 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(PetscLogStagePop());
     PetscCall(energy.View(est, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(energy.Write(est, out));
+    if (req.shooting && est.mode >= 0) {
+      PetscCheck(est.found, comm, PETSC_ERR_NOT_CONVERGED,
+                 "shooting: the energy estimate found no amplitude where damping and reaction powers balance; no initial guess");
+      // Z0 = U_e + s (U0 - U_e), s dU0: the estimate's orbit scaled by -shoot_q_scale.
+      VecH U0, dU0;
+      PetscCall(VecDuplicate(est.U0, U0.out()));
+      PetscCall(VecDuplicate(est.dU0, dU0.out()));
+      PetscCall(VecWAXPY(U0, -1.0, eq.U, est.U0));
+      PetscCall(VecAYPX(U0, shooting.q_scale, eq.U));
+      PetscCall(VecCopy(est.dU0, dU0));
+      PetscCall(VecScale(dU0, shooting.q_scale));
+      ShootingResult sres;
+      PetscCall(PetscLogStagePush(st_shooting));
+      PetscErrorCode serr = shooting.Solve(model, eq, theta, U0, dU0, est.T0, sres);
+      PetscCall(PetscLogStagePop());
+      PetscCall(shooting.Write(sres, out)); // also the best iterate of a failed run
+      PetscCall(serr);
+      PetscCall(shooting.View(sres, PETSC_VIEWER_STDOUT_(comm)));
+    }
   }
   if (req.transient) {
     TransientResult tr;

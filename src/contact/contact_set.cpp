@@ -105,6 +105,23 @@ PetscErrorCode ContactSet::LocalComponents(Vec x, std::vector<PetscReal> &out) c
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ContactSet::AddForce(const PetscReal *r, Vec R) const
+{
+  PetscInt     rstart, rend;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(R, &rstart, &rend));
+  PetscCall(VecGetArray(R, &a));
+  for (size_t c = 0; c < points.size(); ++c) {
+    const Eigen::Vector3d f = r[3 * c + kT] * points[c].t + r[3 * c + kB] * points[c].b + r[3 * c + kN] * points[c].n;
+    for (const ContactNode &nd : points[c].nodes)
+      for (int k = 0; k < 3; ++k)
+        if (nd.dofs[k] >= rstart && nd.dofs[k] < rend) a[nd.dofs[k] - rstart] += nd.weight * f[k];
+  }
+  PetscCall(VecRestoreArray(R, &a));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ContactSet::View(PetscViewer viewer) const
 {
   PetscBool ascii;

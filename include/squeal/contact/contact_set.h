@@ -67,6 +67,9 @@ public:
   // distributed vector: out[3c + dir] = h_{dir,c}^T x. Collective (gathers the few nodal values).
   PetscErrorCode LocalComponents(Vec x, std::vector<PetscReal> &out) const;
 
+  // R += H r for local reactions r (3 n_c: t, b, n per point), into the rows this rank owns.
+  PetscErrorCode AddForce(const PetscReal *r, Vec R) const;
+
   PetscErrorCode View(PetscViewer viewer) const;
 };
 

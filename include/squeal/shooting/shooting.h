@@ -1,0 +1,103 @@
+// Shooting for the periodic orbit with the period as unknown (method.md §6).
+//
+// Unknowns x = (Z0, T), Z = (U, dU) in R^{2N}. The discrete flow Z(Z0, T) runs N_s steps of the
+// theta-method (integration/theta.h) with h = T / N_s, every evaluation starting the contact
+// fixed point from the steady-sliding reactions, so the flow is a function of (Z0, T) alone.
+// Residual (SNES, options prefix "shoot_"):
+//     H = Z(Z0, T) - Z0,     p = G_a^T (Z0 - Z_a)                                         (6.1)
+// with the anchor (Z_a, G_a = G(Z(Z_a, T))) reset to the current iterate at the start of every
+// Newton iteration (SNESSetUpdate), so the last row linearises to the talk's phase row of (6.2).
+// The Jacobian is a MatShell of matrix-free products (6.4): one period integration each, forward
+// differences with step -shoot_fd_step * ||Z0|| / ||v||, which include d Z / d T consistently;
+// the bordered system is solved by GMRES without preconditioner (-shoot_ksp_*). Newton stops
+// when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate (-shoot_eps1, -shoot_eps2).
+// Floquet multipliers: eigenvalues of the monodromy matrix built by 2N forward differences
+// (delta = fd_step ||U0|| for displacement columns, fd_step ||dU0|| for velocity columns);
+// the trivial multiplier (closest to 1) is reported as an accuracy check.
+#pragma once
+
+#include "squeal/integration/theta.h"
+#include "squeal/io/h5.h"
+#include "squeal/stability/equilibrium.h"
+
+#include <petscsnes.h>
+
+#include <complex>
+#include <string>
+#include <vector>
+
+namespace squeal {
+
+struct ShootingResult {
+  bool                                 converged = false;
+  std::string                          reason;
+  PetscInt                             iterations = 0, flow_evaluations = 0;
+  PetscReal                            period = 0, residual = 0; // ||H|| / ||Z0|| at the returned iterate
+  std::vector<PetscReal>               residual_history, period_history;
+  std::vector<PetscReal>               Z0;                 // (U, dU) on rank 0
+  std::vector<std::complex<PetscReal>> floquet;            // by decreasing modulus
+  PetscInt                             trivial = -1;       // index of the multiplier closest to 1
+  bool                                 stable_cycle = false;
+  std::vector<PetscReal>               orbit_t, orbit_U;   // one period, rank 0
+  std::vector<PetscInt>                orbit_status;       // per step and point
+  std::vector<PetscReal>               peak_to_peak;       // per DOF over the orbit
+  PetscReal                            frac_separated = 0, frac_stuck = 0;
+};
+
+class Shooting {
+public:
+  explicit Shooting(MPI_Comm comm) : comm_(comm) {}
+  ~Shooting();
+  // -shoot_steps, -shoot_eps1, -shoot_eps2, -shoot_fd_step, -shoot_floquet, -shoot_floquet_dense_max,
+  // -shoot_q_scale (start from q_scale * q0 of the energy estimate),
+  // and the SNES/KSP under -shoot_ (-shoot_snes_max_it, -shoot_snes_monitor, -shoot_ksp_*).
+  PetscErrorCode SetFromOptions();
+  // Solves from (U0, dU0, T0). Not converging is reported in res (reason, best iterate), and
+  // returned as an error after res is complete, so that the caller can write it first.
+  PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
+                       ShootingResult &res);
+  PetscErrorCode View(const ShootingResult &res, PetscViewer viewer) const;
+  PetscErrorCode Write(const ShootingResult &res, io::H5Writer &out) const;
+
+  // The pieces, public for tests: the flow over one period and the bordered residual/Jacobian.
+  PetscErrorCode Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end = nullptr);
+  PetscErrorCode Residual(Vec x, Vec f);
+  PetscErrorCode JacobianProduct(Vec x, Vec v, Vec y); // J(x) v, matrix-free
+  PetscErrorCode CreateState(Vec *x) const;
+  PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
+  PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
+  PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
+  PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
+
+  PetscInt  steps = 1000, floquet_dense_max = 400;
+  PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
+  PetscBool floquet = PETSC_TRUE;
+
+private:
+  friend struct ShootingCallbacks;
+  PetscErrorCode SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti);
+  PetscErrorCode VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU); // G(Z)
+  PetscErrorCode Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
+
+  MPI_Comm                 comm_;
+  const Model             *model_ = nullptr;
+  ThetaIntegrator         *ti_    = nullptr;
+  Eigen::VectorXd          r_init_;
+  PetscReal                T_setup_ = -1, T0_ = 0;
+  PetscInt                 nloc_ = 0, evaluations_ = 0;
+  VecH                     U_, dU_, U1_, dU1_, wU_, wdU_, gU_, gdU_, aU_, adU_, tmp_;
+  VecH                     xa_, ZaU_, ZadU_, GaU_, GadU_; // anchor
+  VecH                     xbase_, fbase_, xp_, fp_;
+  KSPH                     mass_ksp_;
+  SNES                     snes_ = nullptr;
+  MatH                     J_;
+  bool                     anchored_ = false;
+  std::vector<PetscReal>   hist_res_, hist_T_;
+  PetscReal                best_res_ = PETSC_INFINITY;
+  VecH                     best_x_;
+  std::string              fail_reason_;
+  PetscReal                z_e_dist0_ = 0;
+  VecH                     Ue_;
+};
+
+} // namespace squeal

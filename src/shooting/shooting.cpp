@@ -1,0 +1,628 @@
+#include "squeal/shooting/shooting.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
+namespace squeal {
+
+// SNES callbacks: C functions that reach the Shooting object through their context.
+struct ShootingCallbacks {
+  static PetscErrorCode Function(SNES, Vec x, Vec f, void *ctx)
+  {
+    auto *s = static_cast<Shooting *>(ctx);
+    PetscFunctionBeginUser;
+    PetscCall(s->Residual(x, f));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode Jacobian(SNES, Vec x, Mat, Mat, void *ctx)
+  {
+    auto *s = static_cast<Shooting *>(ctx);
+    PetscBool same = PETSC_FALSE;
+    PetscFunctionBeginUser;
+    // The base point of the products: reuse the residual SNES just computed there.
+    if (s->xbase_) PetscCall(VecEqual(x, s->xbase_, &same));
+    if (!same) {
+      PetscCall(VecCopy(x, s->xbase_));
+      PetscCall(s->Residual(x, s->fbase_));
+    }
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode Mult(Mat J, Vec v, Vec y)
+  {
+    Shooting *s;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &s));
+    PetscCall(s->JacobianProduct(s->xbase_, v, y));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode Update(SNES snes, PetscInt)
+  {
+    Shooting *s;
+    Vec       x;
+    PetscFunctionBeginUser;
+    PetscCall(SNESGetApplicationContext(snes, &s));
+    PetscCall(SNESGetSolution(snes, &x));
+    PetscCall(s->SetAnchor(x));
+    // The anchor changed: the cached base residual is stale.
+    PetscCall(VecSet(s->xbase_, PETSC_INFINITY));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode Converged(SNES snes, PetscInt it, PetscReal, PetscReal, PetscReal fnorm, SNESConvergedReason *reason,
+                                  void *ctx)
+  {
+    auto     *s = static_cast<Shooting *>(ctx);
+    Vec       x, f, dx;
+    PetscReal T, nU, ndU, p = 0;
+    PetscInt  max_it;
+    PetscFunctionBeginUser;
+    *reason = SNES_CONVERGED_ITERATING;
+    PetscCall(SNESGetSolution(snes, &x));
+    PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
+    PetscCall(s->Unpack(x, s->wU_, s->wdU_, &T));
+    PetscCall(s->Unpack(f, s->aU_, s->adU_, &p));
+    PetscCall(VecNorm(s->wU_, NORM_2, &nU));
+    PetscCall(VecNorm(s->wdU_, NORM_2, &ndU));
+    const PetscReal nH  = std::sqrt(std::max(0.0, fnorm * fnorm - p * p));
+    const PetscReal res = nH / std::hypot(nU, ndU);
+    s->hist_res_.push_back(res);
+    s->hist_T_.push_back(T);
+    if (res < s->best_res_) {
+      s->best_res_ = res;
+      PetscCall(VecCopy(x, s->best_x_));
+    }
+    PetscReal dT = PETSC_INFINITY;
+    if (it > 0) {
+      PetscCall(SNESGetSolutionUpdate(snes, &dx));
+      PetscCall(s->Unpack(dx, s->aU_, s->adU_, &dT));
+    }
+    PetscBool mon = PETSC_FALSE;
+    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
+    if (mon)
+      PetscCall(PetscPrintf(s->comm_, "  shooting %2" PetscInt_FMT ": ||H||/||Z0|| = %.3e  T = %.9f s  dT/T = %.3e\n", it,
+                            (double)res, (double)T, it > 0 ? (double)(std::abs(dT) / T) : 0.0));
+    if (PetscIsInfOrNanReal(fnorm)) {
+      *reason        = SNES_DIVERGED_FNORM_NAN;
+      s->fail_reason_ = "residual is NaN or infinite";
+    } else if (it > 0 && res < s->eps1 && std::abs(dT) / T < s->eps2) {
+      *reason = SNES_CONVERGED_FNORM_RELATIVE;
+    } else {
+      const size_t n = s->hist_res_.size();
+      if (n >= 4 && s->hist_res_[n - 1] > s->hist_res_[n - 2] && s->hist_res_[n - 2] > s->hist_res_[n - 3] &&
+          s->hist_res_[n - 3] > s->hist_res_[n - 4]) {
+        *reason        = SNES_DIVERGED_DTOL;
+        s->fail_reason_ = "the residual grew for 3 iterations in a row";
+      }
+      // Orbit collapsing onto the equilibrium: a trivial fixed point of the flow.
+      PetscCall(VecWAXPY(s->tmp_, -1.0, s->Ue_, s->wU_));
+      PetscReal d;
+      PetscCall(VecNorm(s->tmp_, NORM_2, &d));
+      d = std::hypot(d, ndU);
+      if (it == 0) s->z_e_dist0_ = d;
+      else if (d < 1e-3 * s->z_e_dist0_) {
+        *reason        = SNES_DIVERGED_DTOL;
+        s->fail_reason_ = "the orbit collapsed onto the sliding equilibrium";
+      }
+      PetscCall(SNESGetTolerances(snes, nullptr, nullptr, nullptr, &max_it, nullptr));
+      if (*reason == SNES_CONVERGED_ITERATING && it >= max_it) {
+        *reason        = SNES_DIVERGED_MAX_IT;
+        s->fail_reason_ = "no convergence in " + std::to_string(max_it) + " Newton iterations (-shoot_snes_max_it)";
+      }
+    }
+    PetscFunctionReturn(0);
+  }
+};
+
+Shooting::~Shooting()
+{
+  if (snes_) PetscCallVoid(SNESDestroy(&snes_));
+}
+
+PetscErrorCode Shooting::SetFromOptions()
+{
+  OptionChecks checks;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm_, "shoot_", "Shooting for the limit cycle", "Shooting");
+  PetscCall(PetscOptionsInt("-steps", "Theta-method steps per period N_s (h = T / N_s)", "Shooting", steps, &steps, nullptr));
+  SquealOptionsReal("-eps1", "Stop when ||Z(Z0,T) - Z0|| / ||Z0|| < eps1 ...", "Shooting", &eps1, Range::Positive(), checks);
+  SquealOptionsReal("-eps2", "... and |dT| / T < eps2 at the same iterate", "Shooting", &eps2, Range::Positive(), checks);
+  SquealOptionsReal("-fd_step", "Relative finite-difference step of the flow derivatives", "Shooting", &fd_step, Range::Positive(),
+                    checks);
+  SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
+                    Range::Positive(), checks);
+  PetscCall(PetscOptionsBool("-floquet", "Compute Floquet multipliers at convergence", "Shooting", floquet, &floquet, nullptr));
+  PetscCall(PetscOptionsInt("-floquet_dense_max", "Largest 2N for the dense monodromy (2N flows)", "Shooting", floquet_dense_max,
+                            &floquet_dense_max, nullptr));
+  PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
+  PetscCheck(steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
+
+  SNESLineSearch ls;
+  KSP            ksp;
+  PC             pc;
+  PetscCall(SNESCreate(comm_, &snes_));
+  PetscCall(SNESSetOptionsPrefix(snes_, "shoot_"));
+  PetscCall(SNESSetType(snes_, SNESNEWTONLS));
+  PetscCall(SNESGetLineSearch(snes_, &ls));
+  PetscCall(SNESLineSearchSetType(ls, SNESLINESEARCHBASIC)); // the talk's plain Newton
+  PetscCall(SNESGetKSP(snes_, &ksp));
+  PetscCall(KSPSetType(ksp, KSPGMRES));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCNONE));
+  PetscCall(KSPSetTolerances(ksp, 1e-8, PETSC_DEFAULT, PETSC_DEFAULT, 200));
+  PetscCall(SNESSetTolerances(snes_, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 20, PETSC_DEFAULT));
+  PetscCall(SNESSetFromOptions(snes_));
+  // Our monitor prints what the method's stopping rule looks at; PETSc's would print ||F||.
+  PetscCall(SNESMonitorCancel(snes_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti)
+{
+  PC pc;
+  PetscFunctionBeginUser;
+  if (!snes_) PetscCall(SetFromOptions());
+  model_ = &model;
+  ti_    = &ti;
+  PetscCall(VecGetLocalSize(model.F, &nloc_));
+  for (VecH *v : {&U_, &dU_, &U1_, &dU1_, &wU_, &wdU_, &gU_, &gdU_, &aU_, &adU_, &tmp_, &ZaU_, &ZadU_, &GaU_, &GadU_, &Ue_})
+    PetscCall(VecDuplicate(model.F, v->out()));
+  PetscCall(VecCopy(eq.U, Ue_));
+  const PetscInt nc = model.contacts.Size();
+  r_init_.setZero(3 * nc);
+  for (PetscInt c = 0; c < nc; ++c) {
+    r_init_[3 * c + kT] = model.contacts.mu * eq.N[c];
+    r_init_[3 * c + kN] = eq.N[c];
+  }
+  for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_}) PetscCall(CreateState(v->out()));
+  PetscCall(VecSet(xbase_, PETSC_INFINITY));
+  // M^-1 for the vector field G(Z).
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  PetscCall(KSPCreate(comm_, mass_ksp_.out()));
+  PetscCall(KSPSetOptionsPrefix(mass_ksp_, "shoot_mass_"));
+  PetscCall(KSPSetType(mass_ksp_, KSPPREONLY));
+  PetscCall(KSPGetPC(mass_ksp_, &pc));
+  PetscCall(PCSetType(pc, size > 1 ? PCLU : PCCHOLESKY));
+  PetscCall(PCFactorSetMatSolverType(pc, size > 1 ? MATSOLVERMUMPS : MATSOLVERPETSC));
+  PetscCall(KSPSetOperators(mass_ksp_, model.M, model.M));
+  PetscCall(KSPSetFromOptions(mass_ksp_));
+  PetscInt n, nl;
+  PetscCall(VecGetSize(xa_, &n));
+  PetscCall(VecGetLocalSize(xa_, &nl));
+  PetscCall(MatCreateShell(comm_, nl, nl, n, n, this, J_.out()));
+  PetscCall(MatShellSetOperation(J_, MATOP_MULT, (void (*)(void))ShootingCallbacks::Mult));
+  T_setup_ = -1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::CreateState(Vec *x) const
+{
+  PetscMPIInt rank, size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  // Local block (U, dU) of this rank, and T at the very end, on the last rank.
+  PetscCall(VecCreateMPI(comm_, 2 * nloc_ + (rank == size - 1 ? 1 : 0), PETSC_DETERMINE, x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Pack(Vec U, Vec dU, PetscReal T, Vec x) const
+{
+  PetscScalar       *a;
+  const PetscScalar *u, *du;
+  PetscInt           nl;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetLocalSize(x, &nl));
+  PetscCall(VecGetArray(x, &a));
+  PetscCall(VecGetArrayRead(U, &u));
+  PetscCall(VecGetArrayRead(dU, &du));
+  for (PetscInt i = 0; i < nloc_; ++i) a[i] = u[i], a[nloc_ + i] = du[i];
+  if (nl > 2 * nloc_) a[2 * nloc_] = T;
+  PetscCall(VecRestoreArrayRead(dU, &du));
+  PetscCall(VecRestoreArrayRead(U, &u));
+  PetscCall(VecRestoreArray(x, &a));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const
+{
+  const PetscScalar *a;
+  PetscScalar       *u, *du;
+  PetscInt           nl;
+  PetscMPIInt        size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  PetscCall(VecGetLocalSize(x, &nl));
+  PetscCall(VecGetArrayRead(x, &a));
+  PetscCall(VecGetArray(U, &u));
+  PetscCall(VecGetArray(dU, &du));
+  for (PetscInt i = 0; i < nloc_; ++i) u[i] = a[i], du[i] = a[nloc_ + i];
+  PetscReal t = nl > 2 * nloc_ ? PetscRealPart(a[2 * nloc_]) : 0;
+  PetscCall(VecRestoreArray(dU, &du));
+  PetscCall(VecRestoreArray(U, &u));
+  PetscCall(VecRestoreArrayRead(x, &a));
+  PetscCallMPI(MPI_Bcast(&t, 1, MPIU_REAL, size - 1, comm_));
+  if (T) *T = t;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end)
+{
+  Eigen::VectorXd r = r_init_;
+  StepInfo        info;
+  PetscFunctionBeginUser;
+  // A new period means a new step size: (S1)-(S3) again.
+  if (T != T_setup_) {
+    PetscCall(ti_->SetUp(*model_, T / steps));
+    T_setup_ = T;
+  }
+  PetscCall(VecCopy(U, U1));
+  PetscCall(VecCopy(dU, dU1));
+  for (PetscInt i = 0; i < steps; ++i) {
+    PetscCall(ti_->Step(U1, dU1, r, &info));
+    PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
+               "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
+  }
+  ++evaluations_;
+  if (r_end) *r_end = r;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU)
+{
+  PetscFunctionBeginUser;
+  // G(Z) = (dU, M^-1 (F + H r - C dU - K U))
+  PetscCall(VecCopy(dU, gU));
+  PetscCall(MatMult(model_->K, U, tmp_));
+  PetscCall(VecAYPX(tmp_, -1.0, model_->F));
+  if (model_->HasDamping()) {
+    PetscCall(MatMult(model_->C, dU, gdU));
+    PetscCall(VecAXPY(tmp_, -1.0, gdU));
+  }
+  if (r.size()) PetscCall(model_->contacts.AddForce(r.data(), tmp_));
+  PetscCall(KSPSolve(mass_ksp_, tmp_, gdU));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetAnchor(Vec x)
+{
+  PetscReal       T;
+  Eigen::VectorXd r;
+  PetscFunctionBeginUser;
+  PetscCall(Unpack(x, ZaU_, ZadU_, &T));
+  PetscCall(Flow(ZaU_, ZadU_, T, U1_, dU1_, &r));
+  PetscCall(VectorField(U1_, dU1_, r, GaU_, GadU_));
+  anchored_ = true;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Residual(Vec x, Vec f)
+{
+  PetscReal   T, p = 0;
+  PetscScalar d1, d2;
+  PetscFunctionBeginUser;
+  PetscCall(Unpack(x, U_, dU_, &T));
+  if (!(T > 0.5 * T0_ && T < 2 * T0_)) {
+    fail_reason_ = "the period left (T0/2, 2 T0): T = " + std::to_string(T) + " s";
+    if (snes_) PetscCall(SNESSetFunctionDomainError(snes_));
+    PetscCall(VecSet(f, PETSC_INFINITY));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(Flow(U_, dU_, T, U1_, dU1_));
+  PetscCall(VecAXPY(U1_, -1.0, U_));
+  PetscCall(VecAXPY(dU1_, -1.0, dU_));
+  if (anchored_) {
+    PetscCall(VecWAXPY(wU_, -1.0, ZaU_, U_));
+    PetscCall(VecWAXPY(wdU_, -1.0, ZadU_, dU_));
+    PetscCall(VecDot(wU_, GaU_, &d1));
+    PetscCall(VecDot(wdU_, GadU_, &d2));
+    p = PetscRealPart(d1 + d2);
+  }
+  PetscCall(Pack(U1_, dU1_, p, f));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
+{
+  PetscReal nx, nv;
+  PetscBool same = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscCall(VecEqual(x, xbase_, &same));
+  if (!same) {
+    PetscCall(VecCopy(x, xbase_));
+    PetscCall(Residual(x, fbase_));
+  }
+  PetscCall(VecNorm(v, NORM_2, &nv));
+  if (nv == 0) {
+    PetscCall(VecZeroEntries(y));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(VecNorm(x, NORM_2, &nx));
+  const PetscReal eps = fd_step * nx / nv;
+  PetscCall(VecWAXPY(xp_, eps, v, x));
+  PetscCall(Residual(xp_, y));
+  PetscCall(VecAXPY(y, -1.0, fbase_));
+  PetscCall(VecScale(y, 1.0 / eps));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
+{
+  PetscInt  N, lo, hi;
+  PetscReal nU, ndU;
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCall(VecGetSize(U0, &N));
+  PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
+  PetscCall(VecNorm(U0, NORM_2, &nU));
+  PetscCall(VecNorm(dU0, NORM_2, &ndU));
+  VecH bU, bdU;
+  PetscCall(VecDuplicate(U0, bU.out()));
+  PetscCall(VecDuplicate(U0, bdU.out()));
+  PetscCall(Flow(U0, dU0, T, bU, bdU));
+  Mono.setZero(2 * N, 2 * N);
+  VecScatter sc;
+  Vec        z;
+  PetscCall(VecScatterCreateToAll(U0, &sc, &z));
+  auto gather = [&](Vec v, Eigen::Ref<Eigen::VectorXd> out) -> PetscErrorCode {
+    const PetscScalar *a;
+    PetscFunctionBeginUser;
+    PetscCall(VecScatterBegin(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecGetArrayRead(z, &a));
+    for (PetscInt i = 0; i < N; ++i) out[i] = PetscRealPart(a[i]);
+    PetscCall(VecRestoreArrayRead(z, &a));
+    PetscFunctionReturn(0);
+  };
+  Eigen::VectorXd base(2 * N), col(2 * N);
+  PetscCall(gather(bU, base.head(N)));
+  PetscCall(gather(bdU, base.tail(N)));
+  for (PetscInt j = 0; j < 2 * N; ++j) {
+    const bool      disp  = j < N;
+    const PetscInt  i     = disp ? j : j - N;
+    // Forward (+delta) steps: a closed point pushed into the surface is projected back at once.
+    const PetscReal delta = fd_step * (disp ? (nU > 0 ? nU : 1.0) : (ndU > 0 ? ndU : 1.0));
+    PetscCall(VecCopy(U0, U_));
+    PetscCall(VecCopy(dU0, dU_));
+    if (i >= lo && i < hi) PetscCall(VecSetValue(disp ? U_ : dU_, i, delta, ADD_VALUES));
+    PetscCall(VecAssemblyBegin(disp ? U_ : dU_));
+    PetscCall(VecAssemblyEnd(disp ? U_ : dU_));
+    PetscCall(Flow(U_, dU_, T, U1_, dU1_));
+    PetscCall(gather(U1_, col.head(N)));
+    PetscCall(gather(dU1_, col.tail(N)));
+    Mono.col(j) = (col - base) / delta;
+  }
+  PetscCall(VecDestroy(&z));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res)
+{
+  PetscInt        N;
+  PetscMPIInt     rank;
+  Eigen::VectorXd r = r_init_;
+  StepInfo        info;
+  std::vector<int> st;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCall(VecGetSize(U0, &N));
+  if (T != T_setup_) {
+    PetscCall(ti_->SetUp(*model_, T / steps));
+    T_setup_ = T;
+  }
+  VecScatter sc;
+  Vec        z;
+  PetscCall(VecScatterCreateToZero(U0, &sc, &z));
+  PetscCall(VecCopy(U0, U1_));
+  PetscCall(VecCopy(dU0, dU1_));
+  const PetscInt nc = model_->contacts.Size();
+  res.orbit_t.clear();
+  res.orbit_U.clear();
+  res.orbit_status.clear();
+  for (PetscInt i = 0; i <= steps; ++i) {
+    if (i > 0) PetscCall(ti_->Step(U1_, dU1_, r, &info));
+    PetscCall(VecScatterBegin(sc, U1_, z, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(sc, U1_, z, INSERT_VALUES, SCATTER_FORWARD));
+    if (rank == 0) {
+      const PetscScalar *a;
+      PetscCall(VecGetArrayRead(z, &a));
+      for (PetscInt k = 0; k < N; ++k) res.orbit_U.push_back(PetscRealPart(a[k]));
+      PetscCall(VecRestoreArrayRead(z, &a));
+      res.orbit_t.push_back(i * T / steps);
+      if (i > 0 && nc > 0) {
+        ti_->Contact().Status(r, st);
+        res.orbit_status.insert(res.orbit_status.end(), st.begin(), st.end());
+      }
+    }
+  }
+  PetscCall(VecDestroy(&z));
+  PetscCall(VecScatterDestroy(&sc));
+  if (rank == 0) {
+    res.peak_to_peak.assign(N, 0.0);
+    for (PetscInt k = 0; k < N; ++k) {
+      PetscReal lo = PETSC_INFINITY, hi = PETSC_NINFINITY;
+      for (PetscInt i = 0; i <= steps; ++i) lo = std::min(lo, res.orbit_U[i * N + k]), hi = std::max(hi, res.orbit_U[i * N + k]);
+      res.peak_to_peak[k] = hi - lo;
+    }
+    if (!res.orbit_status.empty()) {
+      PetscReal n0 = 0, n1 = 0;
+      for (PetscInt s : res.orbit_status) n0 += s == kOpen, n1 += s == kStick;
+      res.frac_separated = n0 / res.orbit_status.size();
+      res.frac_stuck     = n1 / res.orbit_status.size();
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
+                               ShootingResult &res)
+{
+  VecH                x;
+  SNESConvergedReason reason;
+  PetscMPIInt         rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCall(SetUpFor(model, eq, ti));
+  res          = ShootingResult{};
+  T0_          = T0;
+  evaluations_ = 0;
+  anchored_    = false;
+  hist_res_.clear();
+  hist_T_.clear();
+  best_res_ = PETSC_INFINITY;
+  fail_reason_.clear();
+  PetscCall(CreateState(x.out()));
+  PetscCall(Pack(U0, dU0, T0, x));
+  PetscCall(VecCopy(x, best_x_));
+  VecH f;
+  PetscCall(VecDuplicate(x, f.out()));
+  PetscCall(SNESSetFunction(snes_, f, ShootingCallbacks::Function, this));
+  PetscCall(SNESSetJacobian(snes_, J_, J_, ShootingCallbacks::Jacobian, this));
+  PetscCall(SNESSetApplicationContext(snes_, this));
+  PetscCall(SNESSetUpdate(snes_, ShootingCallbacks::Update));
+  PetscCall(SNESSetConvergenceTest(snes_, ShootingCallbacks::Converged, this, nullptr));
+  PetscCall(SNESSolve(snes_, nullptr, x));
+  PetscCall(SNESGetConvergedReason(snes_, &reason));
+  PetscCall(SNESGetIterationNumber(snes_, &res.iterations));
+  res.converged = reason > 0;
+  if (!res.converged && fail_reason_.empty()) {
+    switch (reason) {
+    case SNES_DIVERGED_LINE_SEARCH: fail_reason_ = "line search failure"; break;
+    case SNES_DIVERGED_LINEAR_SOLVE: fail_reason_ = "Krylov failure on the bordered system (-shoot_ksp_*)"; break;
+    case SNES_DIVERGED_FUNCTION_DOMAIN: fail_reason_ = "the period left (T0/2, 2 T0)"; break;
+    default: fail_reason_ = SNESConvergedReasons[reason]; break;
+    }
+  }
+  res.reason           = res.converged ? "converged" : fail_reason_;
+  res.residual_history = hist_res_;
+  res.period_history   = hist_T_;
+  // The returned iterate: the solution, or the best one seen.
+  if (!res.converged) PetscCall(VecCopy(best_x_, x));
+  PetscCall(Unpack(x, aU_, adU_, &res.period));
+  res.residual = res.converged ? hist_res_.back() : best_res_;
+  {
+    VecScatter sc;
+    Vec        z;
+    PetscCall(VecScatterCreateToZero(x, &sc, &z));
+    PetscCall(VecScatterBegin(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
+    // Global order of x is rank by rank (U block, dU block, [T]); put it back as (U, dU).
+    if (rank == 0) {
+      PetscInt           n;
+      const PetscScalar *a;
+      const PetscInt    *ranges;
+      PetscMPIInt        size;
+      PetscCallMPI(MPI_Comm_size(comm_, &size));
+      PetscCall(VecGetOwnershipRanges(model.F, &ranges));
+      PetscCall(VecGetSize(z, &n));
+      PetscCall(VecGetArrayRead(z, &a));
+      const PetscInt N = ranges[size];
+      res.Z0.assign(2 * N, 0.0);
+      PetscInt off = 0;
+      for (PetscMPIInt q = 0; q < size; ++q) {
+        const PetscInt nl = ranges[q + 1] - ranges[q];
+        for (PetscInt i = 0; i < nl; ++i) {
+          res.Z0[ranges[q] + i]     = PetscRealPart(a[off + i]);
+          res.Z0[N + ranges[q] + i] = PetscRealPart(a[off + nl + i]);
+        }
+        off += 2 * nl;
+      }
+      PetscCall(VecRestoreArrayRead(z, &a));
+    }
+    PetscCall(VecDestroy(&z));
+    PetscCall(VecScatterDestroy(&sc));
+  }
+  PetscCall(Orbit(aU_, adU_, res.period, res));
+  if (res.converged && floquet) {
+    PetscInt N;
+    PetscCall(VecGetSize(model.F, &N));
+    if (2 * N <= floquet_dense_max) {
+      Eigen::MatrixXd Mono;
+      PetscCall(Monodromy(aU_, adU_, res.period, Mono));
+      Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
+      for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
+      std::sort(res.floquet.begin(), res.floquet.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
+      PetscReal best = PETSC_INFINITY, others = 0;
+      for (size_t i = 0; i < res.floquet.size(); ++i)
+        if (std::abs(res.floquet[i] - 1.0) < best) best = std::abs(res.floquet[i] - 1.0), res.trivial = (PetscInt)i;
+      for (size_t i = 0; i < res.floquet.size(); ++i)
+        if ((PetscInt)i != res.trivial) others = std::max(others, std::abs(res.floquet[i]));
+      res.stable_cycle = others < 1;
+    }
+  }
+  res.flow_evaluations = evaluations_;
+  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)",
+             res.reason.c_str(), (double)res.residual, (double)res.period);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  PetscCall(PetscViewerASCIIPrintf(viewer, "shooting: %s in %" PetscInt_FMT " Newton iteration(s), %" PetscInt_FMT " period integrations\n",
+                                   res.reason.c_str(), res.iterations, res.flow_evaluations));
+  PetscCall(PetscViewerASCIIPushTab(viewer));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
+                                   1 / (double)res.period, (double)res.residual));
+  std::string p2p;
+  for (size_t j = 0; j < res.peak_to_peak.size() && j < 12; ++j) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%s%.4e", j ? ", " : "", (double)res.peak_to_peak[j]);
+    p2p += b;
+  }
+  PetscCall(PetscViewerASCIIPrintf(viewer, "peak-to-peak (m): %s\n", p2p.c_str()));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "regime: %s (separated %.1f %%, stuck %.1f %% of the period)\n",
+                                   res.frac_separated > 0 && res.frac_stuck > 0 ? "separation/stick/slip"
+                                   : res.frac_separated > 0                     ? "separation/slip"
+                                   : res.frac_stuck > 0                         ? "stick/slip"
+                                                                                : "pure sliding",
+                                   100 * (double)res.frac_separated, 100 * (double)res.frac_stuck));
+  if (!res.floquet.empty()) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (largest first); trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s\n",
+                                     res.floquet[res.trivial].real(), res.floquet[res.trivial].imag(),
+                                     std::abs(res.floquet[res.trivial] - 1.0), res.stable_cycle ? "STABLE" : "UNSTABLE"));
+    for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %2zu  %+.6f %+.6fi  |L| = %.6f%s\n", i, res.floquet[i].real(), res.floquet[i].imag(),
+                                       std::abs(res.floquet[i]), (PetscInt)i == res.trivial ? "  (trivial)" : ""));
+  }
+  PetscCall(PetscViewerASCIIPopTab(viewer));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) const
+{
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  hsize_t sizes[3] = {res.Z0.size(), res.orbit_t.size(), res.peak_to_peak.size()};
+  PetscCallMPI(MPI_Bcast(sizes, 3, MPI_UNSIGNED_LONG_LONG, 0, comm_));
+  const hsize_t nh = res.residual_history.size();
+  PetscCall(out.WriteArray("/shooting/period", {}, &res.period));
+  PetscCall(out.WriteArray("/shooting/Z0", {sizes[0]}, res.Z0.data()));
+  PetscCall(out.WriteIntArray("/shooting/iterations", {}, &res.iterations));
+  PetscCall(out.WriteArray("/shooting/residual_history", {nh}, res.residual_history.data()));
+  PetscCall(out.WriteArray("/shooting/period_history", {nh}, res.period_history.data()));
+  std::vector<PetscReal> fl;
+  for (auto z : res.floquet) fl.insert(fl.end(), {z.real(), z.imag()});
+  PetscCall(out.WriteArray("/shooting/floquet", {res.floquet.size(), 2}, fl.data()));
+  PetscCall(out.WriteArray("/shooting/orbit/t", {sizes[1]}, res.orbit_t.data()));
+  PetscCall(out.WriteArray("/shooting/orbit/U", {sizes[1], sizes[2]}, res.orbit_U.data()));
+  PetscCall(out.WriteAttribute("/shooting", "converged", (PetscInt)res.converged));
+  PetscCall(out.WriteAttribute("/shooting", "reason", res.reason.c_str()));
+  PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
+  PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
+  PetscCall(out.WriteAttribute("/shooting/period", "units", "s"));
+  PetscCall(out.WriteAttribute("/shooting/Z0", "layout", "(U, dU)"));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
