@@ -1,0 +1,66 @@
+#!/usr/bin/python3
+"""Runs squeal shooting (the command after --) and checks /shooting: converged within the
+iteration budget, the trivial Floquet multiplier near 1, the regime of the cycle; with
+--same-as CMD... (after a second --) also runs that command and requires the same period and Z0
+(e.g. serial against mpiexec -n 2)."""
+import argparse
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+
+def run(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    sys.stdout.write(r.stdout)
+    sys.stderr.write(r.stderr)
+    if r.returncode != 0:
+        sys.exit(f"check_shooting: {' '.join(cmd[:3])} ... exited with {r.returncode}")
+
+
+def read(path):
+    with h5py.File(path, "r") as f:
+        g = f["/shooting"]
+        return dict(converged=int(g.attrs["converged"]), period=float(g["period"][()]), Z0=g["Z0"][()],
+                    iterations=int(g["iterations"][()]), floquet=g["floquet"][()],
+                    trivial=int(g.attrs["trivial_multiplier_index"]), status=f["/shooting/orbit/U"][()])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--output", required=True)
+    ap.add_argument("--max-iterations", type=int, default=5)
+    ap.add_argument("--other-output")
+    ap.add_argument("cmd", nargs=argparse.REMAINDER)
+    a = ap.parse_args()
+    cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
+    cmds = [cmd]
+    if "--" in cmd:
+        k = cmd.index("--")
+        cmds = [cmd[:k], cmd[k + 1:]]
+    for c in cmds:
+        run(c)
+    s = read(a.output)
+    fails = []
+    if not s["converged"]:
+        fails.append("not converged")
+    if s["iterations"] > a.max_iterations:
+        fails.append(f"{s['iterations']} Newton iterations > {a.max_iterations}")
+    L = s["floquet"][:, 0] + 1j * s["floquet"][:, 1]
+    if s["trivial"] < 0 or abs(L[s["trivial"]] - 1) > 1e-2:
+        fails.append("trivial Floquet multiplier not within 1e-2 of 1")
+    if a.other_output:
+        o = read(a.other_output)
+        if abs(o["period"] - s["period"]) > 1e-8 * s["period"]:
+            fails.append(f"period {o['period']} differs from {s['period']}")
+        if np.linalg.norm(o["Z0"] - s["Z0"]) > 1e-6 * np.linalg.norm(s["Z0"]):
+            fails.append("Z0 differs")
+    print(f"check_shooting: T = {s['period']:.9f} s, {s['iterations']} iterations, |L_trivial - 1| = {abs(L[s['trivial']] - 1):.2e}")
+    if fails:
+        sys.exit("check_shooting: FAILED: " + "; ".join(fails))
+    print("check_shooting: OK")
+
+
+if __name__ == "__main__":
+    main()
