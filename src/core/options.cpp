@@ -56,6 +56,7 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
     for (const char *f : finalize_time) known = known || std::strcmp(names[i], f) == 0;
     const size_t len = std::strlen(names[i]);
     if (skip_views && (std::strstr(names[i], "_view") || std::strstr(names[i], "_monitor") ||
+                       std::strstr(names[i], "converged_reason") ||
                        (len >= 4 && std::strcmp(names[i] + len - 4, "view") == 0)))
       continue;
     if (known) continue;

@@ -138,9 +138,16 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
     if (crossing < 0 && k > 0 && est.P_reactions[k - 1] - est.P_damping[k - 1] > 0 && est.P_reactions[k] - est.P_damping[k] <= 0)
       crossing = k - 1;
   }
+  // Already saturated at the first scan point (a fine structure of f below q_max / n_scan): the
+  // balance lies in (0, q_1]; f > 0 near 0 for an unstable mode, so bisect there.
+  PetscReal lo = 0, hi = 0;
+  if (crossing >= 0) lo = est.q[crossing], hi = est.q[crossing + 1];
+  else if (est.P_reactions[0] - est.P_damping[0] <= 0 && PowerBalance(1e-6 * est.q[0]) > 0) {
+    lo = 1e-6 * est.q[0], hi = est.q[0];
+    crossing = 0;
+  }
   est.found = crossing >= 0;
   if (est.found) {
-    PetscReal lo = est.q[crossing], hi = est.q[crossing + 1];
     for (PetscInt i = 0; i < bisections; ++i) {
       const PetscReal mid = 0.5 * (lo + hi);
       (PowerBalance(mid) > 0 ? lo : hi) = mid;

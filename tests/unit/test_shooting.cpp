@@ -19,12 +19,14 @@ struct Problem {
   EnergyEstimate     est;
   ThetaIntegrator    ti{PETSC_COMM_WORLD};
   Shooting           sh{PETSC_COMM_WORLD};
-  explicit Problem(const ThreeDofParams &p)
+  explicit Problem(const ThreeDofParams &p) : Problem([&](Model &m) { return BuildThreeDof(PETSC_COMM_WORLD, p, m); }) {}
+  template <class Build>
+  explicit Problem(Build build)
   {
     EquilibriumSolver eqs(PETSC_COMM_WORLD);
     StabilitySolver   ss(PETSC_COMM_WORLD);
     EnergyAnalysis    ea(PETSC_COMM_WORLD);
-    PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, p, model));
+    PetscCallAbort(PETSC_COMM_WORLD, build(model));
     PetscCallAbort(PETSC_COMM_WORLD, eqs.Solve(model, eq));
     PetscCallAbort(PETSC_COMM_WORLD, ss.Solve(model, eq, stab));
     PetscCallAbort(PETSC_COMM_WORLD, ea.SetFromOptions());
@@ -191,5 +193,21 @@ TEST(Shooting, RobustStartsEndWithAResultOrAReason)
     EXPECT_LE(sr.iterations, 20);
     if (Rank0()) std::printf("mu %.2f start x%.1f: %s after %d iterations\n", s.mu, s.scale, sr.reason.c_str(), (int)sr.iterations);
     VecDestroy(&U0), VecDestroy(&dU0);
+  }
+}
+
+TEST(Shooting, StiffAndMultiContactModels)
+{
+  // Stiffness and preload x 1000 (frequency x 31.6); the 4-contact chain (24 + 1 unknowns).
+  ThreeDofParams p;
+  p.k1 *= 1e3, p.k2 *= 1e3, p.k3 *= 1e3, p.Fn *= 1e3;
+  Problem stiff(p);
+  Problem chain([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
+  for (Problem *pr : {&stiff, &chain}) {
+    ASSERT_TRUE(pr->est.found);
+    ShootingResult sr;
+    ASSERT_EQ(pr->sh.Solve(pr->model, pr->eq, pr->ti, pr->est.U0, pr->est.dU0, pr->est.T0, sr), 0);
+    EXPECT_LE(sr.iterations, 8);
+    EXPECT_LT(std::abs(sr.floquet[sr.trivial] - 1.0), 1e-2);
   }
 }
