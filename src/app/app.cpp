@@ -191,6 +191,25 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(PetscLogStagePop());
     PetscCall(energy.View(est, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(energy.Write(est, out));
+    // Several unstable modes: estimate the others too (one line each); shooting starts from the
+    // chosen one (-energy_mode, default the most unstable).
+    if (res.unstable.size() > 1) {
+      const PetscInt chosen = energy.mode;
+      for (PetscInt i : res.unstable) {
+        if (i == est.mode) continue;
+        EnergyEstimate other;
+        energy.mode = i;
+        PetscCall(energy.Estimate(model, eq, res, other));
+        if (other.found)
+          PetscCall(PetscPrintf(comm, "  other unstable mode %" PetscInt_FMT " (f = %.4f Hz): q0 = %.6e, T0 = %.7f s (-energy_mode %" PetscInt_FMT
+                                      " to start from it)\n",
+                                i, (double)(other.omega / (2 * PETSC_PI)), (double)other.q0, (double)other.T0, i));
+        else
+          PetscCall(PetscPrintf(comm, "  other unstable mode %" PetscInt_FMT " (f = %.4f Hz): no balance in the scanned range\n", i,
+                                (double)(other.omega / (2 * PETSC_PI))));
+      }
+      energy.mode = chosen;
+    }
     if (req.shooting && est.mode >= 0) {
       PetscCheck(est.found, comm, PETSC_ERR_NOT_CONVERGED,
                  "shooting: the energy estimate found no amplitude where damping and reaction powers balance; no initial guess");
