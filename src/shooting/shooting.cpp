@@ -87,8 +87,11 @@ struct ShootingCallbacks {
     if (PetscIsInfOrNanReal(fnorm)) {
       *reason        = SNES_DIVERGED_FNORM_NAN;
       s->fail_reason_ = "residual is NaN or infinite";
-    } else if (it > 0 && res < s->eps1 && std::abs(dT) / T < s->eps2) {
-      *reason = SNES_CONVERGED_FNORM_RELATIVE;
+    } else if (it > 0 && s->hist_res_[s->hist_res_.size() - 2] < s->eps1 && std::abs(dT) / T < s->eps2) {
+      // (6.3) at the same iterate x_{it-1}: its residual, and the correction (dZ, dT) computed
+      // there, the one that produced x_it (applied: x_it is returned).
+      *reason              = SNES_CONVERGED_FNORM_RELATIVE;
+      s->criterion_iterate_ = it - 1;
     } else {
       const size_t n = s->hist_res_.size();
       if (n >= 4 && s->hist_res_[n - 1] > s->hist_res_[n - 2] && s->hist_res_[n - 2] > s->hist_res_[n - 3] &&
@@ -480,6 +483,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   hist_T_.clear();
   best_res_ = PETSC_INFINITY;
   fail_reason_.clear();
+  criterion_iterate_ = -1;
   PetscCall(CreateState(x.out()));
   PetscCall(Pack(U0, dU0, T0, x));
   PetscCall(VecCopy(x, best_x_));
@@ -492,8 +496,9 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SNESSetConvergenceTest(snes_, ShootingCallbacks::Converged, this, nullptr));
   PetscCall(SNESSolve(snes_, nullptr, x));
   PetscCall(SNESGetConvergedReason(snes_, &reason));
-  PetscCall(SNESGetIterationNumber(snes_, &res.iterations));
-  res.converged = reason > 0;
+  PetscCall(SNESGetIterationNumber(snes_, &res.corrections));
+  res.converged  = reason > 0;
+  res.iterations = res.converged ? criterion_iterate_ : res.corrections;
   if (!res.converged && fail_reason_.empty()) {
     switch (reason) {
     case SNES_DIVERGED_LINE_SEARCH: fail_reason_ = "line search failure"; break;
@@ -571,8 +576,10 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
   if (!ascii) PetscFunctionReturn(0);
-  PetscCall(PetscViewerASCIIPrintf(viewer, "shooting: %s in %" PetscInt_FMT " Newton iteration(s), %" PetscInt_FMT " period integrations\n",
-                                   res.reason.c_str(), res.iterations, res.flow_evaluations));
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "shooting: %s in %" PetscInt_FMT " Newton iteration(s) (%" PetscInt_FMT
+                                   " corrections applied), %" PetscInt_FMT " period integrations\n",
+                                   res.reason.c_str(), res.iterations, res.corrections, res.flow_evaluations));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));
@@ -620,6 +627,7 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteArray("/shooting/orbit/t", {sizes[1]}, res.orbit_t.data()));
   PetscCall(out.WriteArray("/shooting/orbit/U", {sizes[1], sizes[2]}, res.orbit_U.data()));
   PetscCall(out.WriteAttribute("/shooting", "converged", (PetscInt)res.converged));
+  PetscCall(out.WriteAttribute("/shooting", "corrections_applied", res.corrections));
   PetscCall(out.WriteAttribute("/shooting", "reason", res.reason.c_str()));
   PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));

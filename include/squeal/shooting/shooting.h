@@ -10,7 +10,8 @@
 // The Jacobian is a MatShell of matrix-free products (6.4): one period integration each, forward
 // differences with step -shoot_fd_step * ||Z0|| / ||v||, which include d Z / d T consistently;
 // the bordered system is solved by GMRES without preconditioner (-shoot_ksp_*). Newton stops
-// when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate (-shoot_eps1, -shoot_eps2).
+// when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate x_k, dT being the Newton
+// correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
 // Floquet multipliers: eigenvalues of the monodromy matrix built by 2N forward differences
 // (delta = fd_step ||U0|| for displacement columns, fd_step ||dU0|| for velocity columns);
 // the trivial multiplier (closest to 1) is reported as an accuracy check.
@@ -31,7 +32,9 @@ namespace squeal {
 struct ShootingResult {
   bool                                 converged = false;
   std::string                          reason;
-  PetscInt                             iterations = 0, flow_evaluations = 0;
+  // iterations: index k of the iterate at which (6.3) holds, ||H(x_k)|| / ||Z0|| < eps1 and the
+  // correction computed at x_k has |dT| / T < eps2; that correction is applied (corrections = k + 1).
+  PetscInt                             iterations = 0, corrections = 0, flow_evaluations = 0;
   PetscReal                            period = 0, residual = 0; // ||H|| / ||Z0|| at the returned iterate
   std::vector<PetscReal>               residual_history, period_history;
   std::vector<PetscReal>               Z0;                 // (U, dU) on rank 0
@@ -94,6 +97,7 @@ private:
   bool                     anchored_ = false;
   std::vector<PetscReal>   hist_res_, hist_T_;
   PetscReal                best_res_ = PETSC_INFINITY;
+  PetscInt                 criterion_iterate_ = -1;
   VecH                     best_x_;
   std::string              fail_reason_;
   PetscReal                z_e_dist0_ = 0;
