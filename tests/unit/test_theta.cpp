@@ -171,7 +171,7 @@ TransientResult RunTransient(const ThreeDofParams &p, PetscReal periods, PetscEr
 TEST(Transient, Case1SeparationSlipLimitCycle)
 {
   ThreeDofParams p; // V = 3
-  TransientResult r = RunTransient(p, 150);
+  TransientResult r = RunTransient(p, 100);
   PetscMPIInt     rank;
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   if (rank) return; // the summary lives on rank 0
@@ -186,7 +186,7 @@ TEST(Transient, Case2StickSlipLimitCycle)
 {
   ThreeDofParams p;
   p.V              = 0.75;
-  TransientResult r = RunTransient(p, 150);
+  TransientResult r = RunTransient(p, 100);
   PetscMPIInt     rank;
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   if (rank) return;
