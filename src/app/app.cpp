@@ -160,6 +160,7 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(eqs.Solve(model, eq));
     PetscCall(PetscLogStagePop());
     PetscCall(eqs.View(model, eq, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(eqs.ViewFromOptions(model, eq));
     PetscCall(WriteEquilibrium(model, eq, out));
 
     PetscCall(PetscLogStagePush(st_stab));

@@ -1,6 +1,7 @@
 #include "squeal/integration/theta.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
+#include "squeal/core/solvers.h"
 #include "squeal/core/sparse.h"
 
 #include <cmath>
@@ -95,7 +96,6 @@ PetscErrorCode ThetaIntegrator::SetDenseMax(PetscInt n)
 
 PetscErrorCode ThetaIntegrator::SetFromOptions()
 {
-  PC pc;
   PetscFunctionBeginUser;
   OptionChecks checks;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Non-smooth theta-method", "ThetaIntegrator");
@@ -114,19 +114,7 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
   PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
   PetscCall(KSPCreate(comm_, ksp_.out()));
   PetscCall(KSPSetOptionsPrefix(ksp_, prefix_.c_str()));
-  PetscCall(KSPSetType(ksp_, KSPPREONLY));
-  PetscCall(KSPGetPC(ksp_, &pc));
-  // A is symmetric positive definite: PETSc's own Cholesky serves one rank (MUMPS costs ~60 us
-  // per solve in fixed overhead at small N); MUMPS LU is the distributed one.
-  PetscMPIInt size;
-  PetscCallMPI(MPI_Comm_size(comm_, &size));
-  if (size > 1) {
-    PetscCall(PCSetType(pc, PCLU));
-    PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
-  } else {
-    PetscCall(PCSetType(pc, PCCHOLESKY));
-    PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERPETSC));
-  }
+  PetscCall(UseDirectSolver(ksp_, Factorisation::SPD)); // A = M + h theta C + h^2 theta^2 K
   PetscCall(KSPSetFromOptions(ksp_));
   PetscFunctionReturn(0);
 }

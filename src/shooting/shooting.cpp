@@ -1,6 +1,7 @@
 #include "squeal/shooting/shooting.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
+#include "squeal/core/solvers.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -168,7 +169,6 @@ PetscErrorCode Shooting::SetFromOptions()
 
 PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti)
 {
-  PC pc;
   PetscFunctionBeginUser;
   if (!snes_) PetscCall(SetFromOptions());
   model_ = &model;
@@ -186,14 +186,9 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_}) PetscCall(CreateState(v->out()));
   PetscCall(VecSet(xbase_, PETSC_INFINITY));
   // M^-1 for the vector field G(Z).
-  PetscMPIInt size;
-  PetscCallMPI(MPI_Comm_size(comm_, &size));
   PetscCall(KSPCreate(comm_, mass_ksp_.out()));
   PetscCall(KSPSetOptionsPrefix(mass_ksp_, "shoot_mass_"));
-  PetscCall(KSPSetType(mass_ksp_, KSPPREONLY));
-  PetscCall(KSPGetPC(mass_ksp_, &pc));
-  PetscCall(PCSetType(pc, size > 1 ? PCLU : PCCHOLESKY));
-  PetscCall(PCFactorSetMatSolverType(pc, size > 1 ? MATSOLVERMUMPS : MATSOLVERPETSC));
+  PetscCall(UseDirectSolver(mass_ksp_, Factorisation::SPD));
   PetscCall(KSPSetOperators(mass_ksp_, model.M, model.M));
   PetscCall(KSPSetFromOptions(mass_ksp_));
   PetscInt n, nl;

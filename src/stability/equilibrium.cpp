@@ -1,5 +1,6 @@
 #include "squeal/stability/equilibrium.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/solvers.h"
 #include "squeal/core/sparse.h"
 
 #include <algorithm>
@@ -24,7 +25,6 @@ PetscErrorCode EquilibriumSolver::SetMaxPasses(PetscInt n)
 
 PetscErrorCode EquilibriumSolver::SetFromOptions()
 {
-  PC pc;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Sliding equilibrium", "EquilibriumSolver");
   PetscCall(PetscOptionsInt("-max_passes", "Passes of the active-set loop (points released / re-closed)",
@@ -34,11 +34,8 @@ PetscErrorCode EquilibriumSolver::SetFromOptions()
   PetscCall(SetMaxPasses(max_passes_));
   PetscCall(KSPCreate(comm_, ksp_.out()));
   PetscCall(KSPSetOptionsPrefix(ksp_, prefix_.c_str()));
-  PetscCall(KSPSetType(ksp_, KSPPREONLY));
-  PetscCall(KSPGetPC(ksp_, &pc));
   // The bordered matrix has a zero block: a factorisation that pivots is needed.
-  PetscCall(PCSetType(pc, PCLU));
-  PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  PetscCall(UseDirectSolver(ksp_, Factorisation::General));
   PetscCall(KSPSetFromOptions(ksp_));
   PetscFunctionReturn(0);
 }
@@ -211,17 +208,8 @@ PetscErrorCode EquilibriumSolver::View(const Model &model, const SlidingEquilibr
 
 PetscErrorCode EquilibriumSolver::ViewFromOptions(const Model &model, const SlidingEquilibrium &eq) const
 {
-  PetscViewer       viewer;
-  PetscViewerFormat format;
-  PetscBool         flg;
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsGetViewer(comm_, nullptr, prefix_.c_str(), "-view", &viewer, &format, &flg));
-  if (flg) {
-    PetscCall(PetscViewerPushFormat(viewer, format));
-    PetscCall(View(model, eq, viewer));
-    PetscCall(PetscViewerPopFormat(viewer));
-    PetscCall(PetscViewerDestroy(&viewer));
-  }
+  PetscCall(squeal::ViewFromOptions(comm_, prefix_, [&](PetscViewer v) { return View(model, eq, v); }));
   PetscFunctionReturn(0);
 }
 

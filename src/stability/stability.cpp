@@ -1,5 +1,6 @@
 #include "squeal/stability/stability.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/solvers.h"
 
 #include <algorithm>
 #include <cmath>
@@ -36,7 +37,6 @@ PetscErrorCode StabilitySolver::SetFromOptions()
 {
   ST  st;
   KSP ksp;
-  PC  pc;
   PetscBool modes = modes_ ? PETSC_TRUE : PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Linear stability of steady sliding", "StabilitySolver");
@@ -56,11 +56,7 @@ PetscErrorCode StabilitySolver::SetFromOptions()
   PetscCall(PEPGetST(pep_, &st));
   PetscCall(STSetType(st, STSINVERT));
   PetscCall(STGetKSP(st, &ksp));
-  PetscCall(KSPSetType(ksp, KSPPREONLY));
-  PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PCSetType(pc, PCLU));
-  // K_r is non-symmetric and may be distributed: MUMPS serves both.
-  PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  PetscCall(UseDirectSolver(ksp, Factorisation::General)); // K_r is non-symmetric
   PetscCall(PEPSetFromOptions(pep_));
   PetscFunctionReturn(0);
 }
@@ -180,17 +176,8 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
 
 PetscErrorCode StabilitySolver::ViewFromOptions(const StabilityResult &res) const
 {
-  PetscViewer       viewer;
-  PetscViewerFormat format;
-  PetscBool         flg;
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsGetViewer(comm_, nullptr, prefix_.c_str(), "-view", &viewer, &format, &flg));
-  if (flg) {
-    PetscCall(PetscViewerPushFormat(viewer, format));
-    PetscCall(View(res, viewer));
-    PetscCall(PetscViewerPopFormat(viewer));
-    PetscCall(PetscViewerDestroy(&viewer));
-  }
+  PetscCall(squeal::ViewFromOptions(comm_, prefix_, [&](PetscViewer v) { return View(res, v); }));
   PetscFunctionReturn(0);
 }
 
