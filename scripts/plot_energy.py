@@ -5,13 +5,12 @@ power against the modal amplitude q, and their first balance q0 (method.md §7).
     plot_energy.py RESULTS.h5 [RESULTS2.h5 ...] -o energy.png [--label LABEL ...]
 """
 import argparse
-import sys
 
 import matplotlib
 
 matplotlib.use("Agg")
-import h5py  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
+from squeal_results import analysis_group, fail  # noqa: E402
 
 
 def main():
@@ -23,19 +22,14 @@ def main():
     ap.add_argument("--span", type=float, default=3.0, help="plot q up to this multiple of the largest q0")
     a = ap.parse_args()
     if a.label and len(a.label) != len(a.files):
-        sys.exit("plot_energy: give one --label per file")
+        fail("give one --label per file")
     fig, ax = plt.subplots(figsize=(7, 4.5))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     qmax, pmax = 0.0, 0.0
     for i, path in enumerate(a.files):
-        try:
-            f = h5py.File(path, "r")
-        except OSError as e:
-            sys.exit(f"plot_energy: cannot read '{path}': {e}")
-        with f:
-            if "energy" not in f or "q" not in f["energy"]:
-                sys.exit(f"plot_energy: '{path}' has no /energy scan (run squeal with -analyses energy on an unstable case)")
-            g = f["energy"]
+        with analysis_group(path, "energy") as (f, g):
+            if "q" not in g:
+                fail(f"'{path}' has no amplitude scan in /energy (the sliding equilibrium was stable)")
             q, pc, pr = g["q"][()] * 1e3, g["P_damping"][()], g["P_reactions"][()]
             label = a.label[i] if a.label else path
             c = colours[i % len(colours)]

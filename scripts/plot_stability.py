@@ -20,17 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-try:
-    import h5py  # noqa: E402
-except ImportError:  # pragma: no cover
-    sys.exit("plot_stability.py: error: the h5py module is required (apt-get install python3-h5py)")
-
-PROG = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "plot_stability.py"
-
-
-def fail(msg):
-    print(f"{PROG}: error: {msg}", file=sys.stderr)
-    sys.exit(1)
+from squeal_results import PROG, analysis_group, fail  # noqa: E402
 
 
 def _s(v):
@@ -38,18 +28,7 @@ def _s(v):
 
 
 def read_stability(path):
-    if not os.path.isfile(path):
-        fail(f"results file '{path}' not found")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        fail(f"cannot open '{path}' as HDF5: {e}")
-    with f:
-        if "stability" not in f or not isinstance(f["stability"], h5py.Group):
-            fail(f"'{path}' has no /stability group (run squeal with -analyses stability)")
-        g = f["stability"]
-        if "eigenvalues" not in g:
-            fail(f"'{path}': /stability/eigenvalues is missing")
+    with analysis_group(path, "stability", ("eigenvalues",)) as (f, g):
         ev = np.asarray(g["eigenvalues"][()], dtype=float)
         if ev.size == 0:
             ev = ev.reshape(0, 2)

@@ -31,17 +31,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-try:
-    import h5py  # noqa: E402
-except ImportError:  # pragma: no cover
-    sys.exit("plot_sweep.py: error: the h5py module is required (apt-get install python3-h5py)")
-
-PROG = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "plot_sweep.py"
-
-
-def fail(msg):
-    print(f"{PROG}: error: {msg}", file=sys.stderr)
-    sys.exit(1)
+from squeal_results import PROG, analysis_group, fail  # noqa: E402
 
 
 def _attr_array(group, name, n):
@@ -60,19 +50,7 @@ def _attr_array(group, name, n):
 
 def read_sweep(path):
     """Return a list of dicts, one per V value of the sweep in `path`."""
-    if not os.path.isfile(path):
-        fail(f"results file '{path}' not found")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        fail(f"cannot open '{path}' as HDF5: {e}")
-    with f:
-        if "sweep" not in f or not isinstance(f["sweep"], h5py.Group):
-            fail(f"'{path}' has no /sweep group (run squeal with -analyses sweep)")
-        g = f["sweep"]
-        for name in ("mu", "eigenvalues"):
-            if name not in g:
-                fail(f"'{path}': /sweep/{name} is missing")
+    with analysis_group(path, "sweep", ("mu", "eigenvalues")) as (f, g):
         mu = np.asarray(g["mu"][()], dtype=float).ravel()
         ev = np.asarray(g["eigenvalues"][()], dtype=float)
         if ev.ndim == 3:  # single V written without the leading axis

@@ -23,7 +23,6 @@ Usage:
 import argparse
 import io
 import os
-import sys
 
 import matplotlib
 
@@ -34,22 +33,12 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-try:
-    import h5py  # noqa: E402
-except ImportError:  # pragma: no cover
-    sys.exit("plot_transient.py: error: the h5py module is required (apt-get install python3-h5py)")
-
-PROG = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "plot_transient.py"
+from squeal_results import PROG, analysis_group, fail  # noqa: E402
 
 # Contact status codes written by squeal: 0 separated, 1 stuck, 2 sliding.
 STATUS_NAMES = ("separated", "stuck", "sliding")
 STATUS_COLOURS = ("#f4a259", "#3b7dd8", "#5bb36b")
 DOF_COLOURS = ("#1f77b4", "#d62728", "#2ca02c")
-
-
-def fail(msg):
-    print(f"{PROG}: error: {msg}", file=sys.stderr)
-    sys.exit(1)
 
 
 def _s(v):
@@ -65,19 +54,7 @@ def _attr(g, name, default=None):
 
 
 def read_transient(path):
-    if not os.path.isfile(path):
-        fail(f"results file '{path}' not found")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        fail(f"cannot open '{path}' as HDF5: {e}")
-    with f:
-        if "transient" not in f or not isinstance(f["transient"], h5py.Group):
-            fail(f"'{path}' has no /transient group (run squeal with -analyses transient)")
-        g = f["transient"]
-        for name in ("t", "U", "V"):
-            if name not in g:
-                fail(f"'{path}': /transient/{name} is missing")
+    with analysis_group(path, "transient", ("t", "U", "V")) as (f, g):
         d = {
             "t": np.asarray(g["t"][()], dtype=float),
             "U": np.asarray(g["U"][()], dtype=float),
