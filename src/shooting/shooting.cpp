@@ -40,6 +40,36 @@ struct ShootingCallbacks {
     PetscCall(s->JacobianProduct(s->xbase_, v, y));
     PetscFunctionReturn(0);
   }
+  // y = M v by forward differences of the flow, displacement and velocity parts of v perturbed
+  // separately with steps scaled by ||U0|| and ||dU0||, as the dense columns are: one scale for
+  // both would shift impacts by far more than the displacements allow.
+  static PetscErrorCode MonodromyMult(Mat A, Vec v, Vec y)
+  {
+    Shooting *s;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(A, &s));
+    PetscCall(VecZeroEntries(s->aU_));
+    PetscCall(VecZeroEntries(s->adU_));
+    for (int part = 0; part < 2; ++part) {
+      PetscReal nv, nz;
+      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
+      Vec moved = part == 0 ? s->wU_ : s->wdU_, fixed = part == 0 ? s->wdU_ : s->wU_;
+      PetscCall(VecNorm(moved, NORM_2, &nv));
+      if (nv == 0) continue;
+      PetscCall(VecNorm(part == 0 ? s->mono_U0_ : s->mono_dU0_, NORM_2, &nz));
+      const PetscReal eps = s->fd_step * (nz > 0 ? nz : 1.0) / nv;
+      PetscCall(VecZeroEntries(fixed));
+      PetscCall(VecAYPX(s->wU_, eps, s->mono_U0_));
+      PetscCall(VecAYPX(s->wdU_, eps, s->mono_dU0_));
+      PetscCall(s->Flow(s->wU_, s->wdU_, s->mono_T_, s->U1_, s->dU1_));
+      PetscCall(VecAXPY(s->U1_, -1.0, s->mono_bU_));
+      PetscCall(VecAXPY(s->dU1_, -1.0, s->mono_bdU_));
+      PetscCall(VecAXPY(s->aU_, 1.0 / eps, s->U1_));
+      PetscCall(VecAXPY(s->adU_, 1.0 / eps, s->dU1_));
+    }
+    PetscCall(s->Pack(s->aU_, s->adU_, 0.0, y));
+    PetscFunctionReturn(0);
+  }
   static PetscErrorCode Update(SNES snes, PetscInt)
   {
     Shooting *s;
@@ -138,8 +168,10 @@ PetscErrorCode Shooting::SetFromOptions()
   SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
                     Range::Positive(), checks);
   PetscCall(PetscOptionsBool("-floquet", "Compute Floquet multipliers at convergence", "Shooting", floquet, &floquet, nullptr));
-  PetscCall(PetscOptionsInt("-floquet_dense_max", "Largest 2N for the dense monodromy (2N flows)", "Shooting", floquet_dense_max,
-                            &floquet_dense_max, nullptr));
+  PetscCall(PetscOptionsInt("-floquet_dense_max", "Largest 2N for the dense monodromy (2N flows); above: SLEPc, matrix-free",
+                            "Shooting", floquet_dense_max, &floquet_dense_max, nullptr));
+  PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
+                            floquet_nev, &floquet_nev, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCheck(steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
@@ -403,6 +435,44 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult)
+{
+  PetscInt N, nconv;
+  MatH     A;
+  EPSH     eps;
+  VecH     z;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetSize(U0, &N));
+  for (VecH *v : {&mono_U0_, &mono_dU0_, &mono_bU_, &mono_bdU_}) PetscCall(VecDuplicate(U0, v->out()));
+  PetscCall(VecCopy(U0, mono_U0_));
+  PetscCall(VecCopy(dU0, mono_dU0_));
+  mono_T_ = T;
+  PetscCall(Flow(U0, dU0, T, mono_bU_, mono_bdU_));
+  // Z-space vectors: the shooting packing without T.
+  PetscCall(VecCreateMPI(comm_, 2 * nloc_, PETSC_DETERMINE, z.out()));
+  PetscCall(MatCreateShell(comm_, 2 * nloc_, 2 * nloc_, 2 * N, 2 * N, this, A.out()));
+  PetscCall(MatShellSetOperation(A, MATOP_MULT, (void (*)(void))ShootingCallbacks::MonodromyMult));
+  PetscCall(EPSCreate(comm_, eps.out()));
+  PetscCall(EPSSetOptionsPrefix(eps, "shoot_floquet_"));
+  PetscCall(EPSSetOperators(eps, A, nullptr));
+  PetscCall(EPSSetProblemType(eps, EPS_NHEP));
+  PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
+  PetscCall(EPSSetWhichEigenpairs(eps, EPS_LARGEST_MAGNITUDE));
+  PetscCall(EPSSetDimensions(eps, PetscMin(floquet_nev, 2 * N - 2), PETSC_DEFAULT, PETSC_DEFAULT));
+  // Products carry ~fd_step relative noise: ask for no more than that allows.
+  PetscCall(EPSSetTolerances(eps, 1e-6, 200));
+  PetscCall(EPSSetFromOptions(eps));
+  PetscCall(EPSSolve(eps));
+  PetscCall(EPSGetConverged(eps, &nconv));
+  mult.clear();
+  for (PetscInt i = 0; i < nconv; ++i) {
+    PetscScalar kr, ki;
+    PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
+    mult.emplace_back(PetscRealPart(kr), PetscRealPart(ki));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res)
 {
   PetscInt        N;
@@ -550,6 +620,8 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       PetscCall(Monodromy(aU_, adU_, res.period, Mono));
       Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
       for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
+    } else PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
+    if (!res.floquet.empty()) {
       std::sort(res.floquet.begin(), res.floquet.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
       PetscReal best = PETSC_INFINITY, others = 0;
       for (size_t i = 0; i < res.floquet.size(); ++i)

@@ -211,3 +211,20 @@ TEST(Shooting, StiffAndMultiContactModels)
     EXPECT_LT(std::abs(sr.floquet[sr.trivial] - 1.0), 1e-2);
   }
 }
+
+TEST(Shooting, MatrixFreeFloquetMatchesDenseMonodromy)
+{
+  // The SLEPc route for large models against the dense monodromy, on the 4-contact chain.
+  Problem        pr([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
+  ShootingResult dense, mf;
+  ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, dense), 0);
+  pr.sh.floquet_dense_max = 0;
+  ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, mf), 0);
+  ASSERT_GE(mf.floquet.size(), 5u);
+  for (size_t i = 0; i < 5; ++i) {
+    double best = 1e300;
+    for (auto d : dense.floquet) best = std::min(best, std::abs(mf.floquet[i] - d));
+    EXPECT_LT(best, 1e-4) << "multiplier " << mf.floquet[i];
+  }
+  EXPECT_LT(std::abs(mf.floquet[mf.trivial] - 1.0), 1e-2);
+}

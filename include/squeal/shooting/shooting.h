@@ -22,6 +22,7 @@
 #include "squeal/stability/equilibrium.h"
 
 #include <petscsnes.h>
+#include <slepceps.h>
 
 #include <complex>
 #include <string>
@@ -71,13 +72,18 @@ public:
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
   PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
   PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
+  // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell
+  // whose product is a forward difference of the flow: for models too large for 2N integrations.
+  PetscErrorCode FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult);
 
-  PetscInt  steps = 1000, floquet_dense_max = 400;
+  PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
   PetscBool floquet = PETSC_TRUE;
 
 private:
   friend struct ShootingCallbacks;
+  VecH mono_U0_, mono_dU0_, mono_bU_, mono_bdU_; // base point and flow of the matrix-free monodromy
+  PetscReal mono_T_ = 0;
   PetscErrorCode SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti);
   PetscErrorCode VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU); // G(Z)
   PetscErrorCode Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
