@@ -321,6 +321,75 @@ PetscErrorCode ThetaIntegrator::Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, Eigen::MatrixXd &dU,
+                                            Eigen::MatrixXd &ddU)
+{
+  const PetscReal   h = h_, t = theta_;
+  const ContactSet &cs = model_->contacts;
+  PetscFunctionBeginUser;
+  PetscCheck(dense_, comm_, PETSC_ERR_SUP, "the exact step tangent needs the dense back end (one rank, N <= -theta_dense_max)");
+  const Eigen::Index k = dU.cols();
+  tvf_.noalias() = P1_ * ddU;
+  tvf_.noalias() += P2_ * dU;
+  if (nc_ > 0) {
+    const PetscInt m = 3 * nc_;
+    tw_.noalias() = Ht_ * tvf_;                                        // delta w_f
+    tg_.noalias() = Ht_ * (dU + h * (1 - t) * ddU);                    // rows kN: delta g~^i
+    tA_.setZero(m, m);
+    trhs_.setZero(m, k);
+    local_.Status(r, tstatus_);
+    for (PetscInt c = 0; c < nc_; ++c) {
+      const PetscInt o = 3 * c, n = o + kN;
+      if (tstatus_[c] == kOpen) {
+        for (int j = 0; j < 3; ++j) tA_(o + j, o + j) = 1.0;           // delta r_c = 0
+        continue;
+      }
+      // Normal row: delta g~_n + h delta v_n = 0, delta v = delta w_f + h W delta r.
+      tA_.row(n)   = h * h * W_.row(n);
+      trhs_.row(n) = -tg_.row(n) - h * tw_.row(n);
+      const bool rect = cs.law == FrictionLaw::Rectilinear;
+      if (tstatus_[c] == kStick) {
+        for (int j : {kT, kB}) {
+          if (rect && j == kB) {
+            tA_(o + j, o + j) = 1.0;                                    // delta r_b = 0
+            continue;
+          }
+          tA_.row(o + j)   = h * W_.row(o + j);                         // delta v_j = 0
+          trhs_.row(o + j) = -tw_.row(o + j);
+        }
+        continue;
+      }
+      // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
+      const PetscReal mu = cs.mu, rn = r[n];
+      if (rect) {
+        const PetscReal sg = v_end[o + kT] - cs.Speed(c) >= 0 ? 1.0 : -1.0;
+        tA_(o + kT, o + kT) = 1.0, tA_(o + kT, n) = mu * sg;
+        tA_(o + kB, o + kB) = 1.0;
+        continue;
+      }
+      Eigen::Vector2d sv(v_end[o + kT] - cs.Speed(c), v_end[o + kB]);
+      const PetscReal ns = sv.norm();
+      const Eigen::Vector2d sh = sv / ns;
+      const Eigen::Matrix2d P  = (mu * rn / ns) * (Eigen::Matrix2d::Identity() - sh * sh.transpose());
+      for (int a = 0; a < 2; ++a) {
+        const int ra = a == 0 ? kT : kB;
+        tA_(o + ra, o + ra) += 1.0;
+        tA_(o + ra, n) += mu * sh[a];
+        for (int b = 0; b < 2; ++b) {
+          const int rb = b == 0 ? kT : kB;
+          tA_.row(o + ra) += P(a, b) * h * W_.row(o + rb);
+          trhs_.row(o + ra) -= P(a, b) * tw_.row(o + rb);
+        }
+      }
+    }
+    tdr_ = tA_.partialPivLu().solve(trhs_);
+    tvf_.noalias() += h * (Y_ * tdr_);                                 // delta dU^{i+1}
+  }
+  dU += h * (t * tvf_ + (1 - t) * ddU);
+  ddU = tvf_;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ThetaIntegrator::Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic)
 {
   PetscScalar ek, ee;

@@ -170,6 +170,8 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscCall(PetscOptionsBool("-floquet", "Compute Floquet multipliers at convergence", "Shooting", floquet, &floquet, nullptr));
   PetscCall(PetscOptionsInt("-floquet_dense_max", "Largest 2N for the dense monodromy (2N flows); above: SLEPc, matrix-free",
                             "Shooting", floquet_dense_max, &floquet_dense_max, nullptr));
+  PetscCall(PetscOptionsBool("-floquet_exact", "Monodromy from exact tangents of the steps (dense theta back end) instead of 2N flows",
+                             "Shooting", floquet_exact, &floquet_exact, nullptr));
   PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
                             floquet_nev, &floquet_nev, nullptr));
   PetscOptionsEnd();
@@ -435,6 +437,34 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Shooting::MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
+{
+  PetscInt        N;
+  Eigen::VectorXd r = r_init_, vloc;
+  StepInfo        info;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetSize(U0, &N));
+  if (T != T_setup_) {
+    PetscCall(ti_->SetUp(*model_, T / steps));
+    T_setup_ = T;
+  }
+  PetscCheck(ti_->Dense(), comm_, PETSC_ERR_SUP, "the exact monodromy needs the dense theta back end (one rank, N <= -theta_dense_max)");
+  PetscCall(VecCopy(U0, U1_));
+  PetscCall(VecCopy(dU0, dU1_));
+  Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N, 2 * N), ddU = Eigen::MatrixXd::Zero(N, 2 * N);
+  dU.leftCols(N).setIdentity();
+  ddU.rightCols(N).setIdentity();
+  for (PetscInt i = 0; i < steps; ++i) {
+    PetscCall(ti_->Step(U1_, dU1_, r, &info));
+    if (r.size()) PetscCall(ti_->Local(dU1_, vloc));
+    PetscCall(ti_->StepTangent(r, vloc, dU, ddU));
+  }
+  Mono.resize(2 * N, 2 * N);
+  Mono << dU, ddU;
+  ++evaluations_;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult)
 {
   PetscInt N, nconv;
@@ -617,7 +647,11 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(VecGetSize(model.F, &N));
     if (2 * N <= floquet_dense_max) {
       Eigen::MatrixXd Mono;
-      PetscCall(Monodromy(aU_, adU_, res.period, Mono));
+      if (floquet_exact && !ti_->Dense())
+        PetscCall(PetscPrintf(comm_, "shooting: -shoot_floquet_exact needs the dense theta back end (one rank, N <= -theta_dense_max); "
+                                     "using finite differences\n"));
+      if (floquet_exact && ti_->Dense()) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
+      else PetscCall(Monodromy(aU_, adU_, res.period, Mono));
       Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
       for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
     } else PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));

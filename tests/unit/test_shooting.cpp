@@ -228,3 +228,111 @@ TEST(Shooting, MatrixFreeFloquetMatchesDenseMonodromy)
   }
   EXPECT_LT(std::abs(mf.floquet[mf.trivial] - 1.0), 1e-2);
 }
+
+TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
+{
+  // Why the trivial multiplier of case 1 does not close on 1 as N_s grows (README, "Trivial Floquet
+  // multiplier"). Z1 = one step from Z0 is again an exact fixed point of the period map Phi, so the
+  // secant over the whole shift is exact: Phi(Z0 + d) - Phi(Z0) = d, d = Z1 - Z0. For a smooth Phi
+  // the secants over [0, s d] would all equal d up to O(|d|). The discrete map is only piecewise
+  // smooth: the step in which the impact falls moves as the orbit shifts, so the secants differ
+  // by an amount that does not shrink with h. That is the miss of the trivial multiplier.
+  ThreeDofParams p; // case 1: separation/slip, one impact per period
+  const PetscInt N = 3;
+  std::vector<double> spread_at;
+  for (PetscInt steps : {1000, 4000}) {
+    Problem pr(p);
+    pr.sh.steps = steps;
+    pr.sh.eps1 = pr.sh.eps2 = 1e-10;
+    pr.sh.floquet           = PETSC_FALSE;
+    ShootingResult sr;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0);
+    Vec U0, dU0, U, dU, U1, dU1;
+    for (Vec *w : {&U0, &dU0, &U, &dU, &U1, &dU1}) ASSERT_EQ(VecDuplicate(pr.eq.U, w), 0);
+    std::vector<double> z(2 * N, 0.0);
+    if (Rank0()) z = sr.Z0;
+    MPI_Bcast(z.data(), 2 * N, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+    PetscInt lo, hi;
+    ASSERT_EQ(VecGetOwnershipRange(U0, &lo, &hi), 0);
+    for (PetscInt i = lo; i < hi; ++i) VecSetValue(U0, i, z[i], INSERT_VALUES), VecSetValue(dU0, i, z[N + i], INSERT_VALUES);
+    VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
+    auto flow = [&](double s, const Eigen::VectorXd &d, Eigen::VectorXd &out) {
+      PetscInt j = 0;
+      for (PetscInt i = lo; i < hi; ++i, ++j) {
+        VecSetValue(U, i, z[i] + s * d[i], INSERT_VALUES);
+        VecSetValue(dU, i, z[N + i] + s * d[N + i], INSERT_VALUES);
+      }
+      VecAssemblyBegin(U), VecAssemblyEnd(U), VecAssemblyBegin(dU), VecAssemblyEnd(dU);
+      PetscCallAbort(PETSC_COMM_WORLD, pr.sh.Flow(U, dU, sr.period, U1, dU1));
+      out.resize(2 * N);
+      out << test::ToDense(U1), test::ToDense(dU1);
+    };
+    Eigen::VectorXd base, Z0(2 * N), d(2 * N), out;
+    flow(0.0, Eigen::VectorXd::Zero(2 * N), base); // also sets the integrator up for h = T / N_s
+    // One step from Z0, the fixed point started from the steady-sliding reactions as in Flow.
+    Eigen::VectorXd r = Eigen::VectorXd::Zero(3);
+    r[kT] = pr.model.contacts.mu * pr.eq.N[0], r[kN] = pr.eq.N[0];
+    VecCopy(U0, U), VecCopy(dU0, dU);
+    StepInfo info;
+    ASSERT_EQ(pr.ti.Step(U, dU, r, &info), 0);
+    Z0 << test::ToDense(U0), test::ToDense(dU0);
+    d << test::ToDense(U), test::ToDense(dU);
+    d -= Z0;
+    flow(1.0, d, out);
+    EXPECT_LT((out - base - d).norm(), 1e-6 * d.norm()) << "N_s = " << steps; // measured 5e-13, 3e-11
+    double lo_dev = 1e300, hi_dev = 0;
+    for (double s : {1e-6, 0.25, 0.5, 0.75}) {
+      flow(s, d, out);
+      const double dev = ((out - base) / s - d).norm() / d.norm();
+      lo_dev = std::min(lo_dev, dev), hi_dev = std::max(hi_dev, dev);
+      if (Rank0()) std::printf("  N_s = %d: secant over [0, s d], s = %-6g: misses d by %.2e |d|\n", (int)steps, s, dev);
+    }
+    EXPECT_LT(hi_dev, 1e-2);
+    spread_at.push_back(hi_dev - lo_dev);
+    for (Vec *w : {&U0, &dU0, &U, &dU, &U1, &dU1}) VecDestroy(w);
+  }
+  // Pieces with different slopes at both step counts: the spread does not shrink with h.
+  EXPECT_GT(spread_at[0], 1e-3);
+  EXPECT_GT(spread_at[1], 0.5 * spread_at[0]);
+}
+
+TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
+{
+  // method.md §6: the product of the exact step tangents (statuses held fixed) against the 2N
+  // forward-difference flows, at the converged cycles of both cases (planar) and of
+  // the 4-contact chain. Dense back end: one rank.
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  if (size > 1) GTEST_SKIP() << "the dense theta back end runs on one rank";
+  ThreeDofParams c1, c2;
+  c2.V = 0.75;
+  Problem p1(c1), p2(c2);
+  Problem chain([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
+  for (Problem *pr : {&p1, &p2, &chain}) {
+    ASSERT_TRUE(pr->est.found);
+    pr->sh.floquet = PETSC_FALSE;
+    ShootingResult sr;
+    ASSERT_EQ(pr->sh.Solve(pr->model, pr->eq, pr->ti, pr->est.U0, pr->est.dU0, pr->est.T0, sr), 0);
+    const PetscInt N = (PetscInt)sr.Z0.size() / 2;
+    Vec            U0, dU0;
+    VecDuplicate(pr->eq.U, &U0), VecDuplicate(pr->eq.U, &dU0);
+    for (PetscInt i = 0; i < N; ++i) VecSetValue(U0, i, sr.Z0[i], INSERT_VALUES), VecSetValue(dU0, i, sr.Z0[N + i], INSERT_VALUES);
+    VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
+    Eigen::MatrixXd fd, exact;
+    ASSERT_EQ(pr->sh.Monodromy(U0, dU0, sr.period, fd), 0);
+    ASSERT_EQ(pr->sh.MonodromyExact(U0, dU0, sr.period, exact), 0);
+    // Columns scaled as the finite differences are (||U0|| vs ||dU0||): compare relative to each
+    // column's size; forward differences of step 1e-7 leave about 1e-6.
+    double worst = 0;
+    for (PetscInt j = 0; j < 2 * N; ++j) worst = std::max(worst, (exact.col(j) - fd.col(j)).norm() / std::max(fd.col(j).norm(), 1e-3));
+    EXPECT_LT(worst, 1e-4) << "N = " << N;
+    Eigen::VectorXcd le = exact.eigenvalues(), lf = fd.eigenvalues();
+    for (Eigen::Index i = 0; i < le.size(); ++i) {
+      double best = 1e300;
+      for (Eigen::Index j = 0; j < lf.size(); ++j) best = std::min(best, std::abs(le[i] - lf[j]));
+      EXPECT_LT(best, 1e-4) << "multiplier " << le[i];
+    }
+    std::printf("  N = %d: exact vs finite-difference monodromy, worst column %.2e\n", (int)N, worst);
+    VecDestroy(&U0), VecDestroy(&dU0);
+  }
+}

@@ -46,6 +46,11 @@ public:
   PetscErrorCode SetUp(const Model &model, PetscReal h);
   // One step in place: (U, dU) at t_i -> t_{i+1}; r: local reactions (3 n_c, warm start in, result out).
   PetscErrorCode Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info);
+  // Exact tangent of the last step (method.md §6, "Exact tangent of the discrete step"), dense back
+  // end only: the columns (dU, ddU) of a tangent at t_i become those at t_{i+1}, differentiating
+  // (S4)-(S9) at the converged reactions r = r^{i+1} with every status held fixed; v_end: local
+  // velocities H^T dU^{i+1} (for the slip directions). N x k columns, k arbitrary.
+  PetscErrorCode StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
   // Energies and the work done over a step from (U0, dU0) to (U1, dU1) with reaction r:
   // damping  h ub^T C ub, reactions h ub^T H r, load h ub^T F, with ub = (U1 - U0)/h.
   PetscErrorCode Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic);
@@ -83,6 +88,8 @@ private:
   // dense back end
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
+  Eigen::MatrixXd tvf_, tw_, tg_, trhs_, tA_, tdr_; // StepTangent work arrays
+  std::vector<int> tstatus_;
 
   // sparse back end
   KSPH       ksp_;

@@ -72,13 +72,16 @@ public:
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
   PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
   PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
+  // The same matrix as the product of the exact step tangents along one flow (method.md §6),
+  // statuses held fixed: no finite-difference error, one flow instead of 2N + 1. Dense back end.
+  PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
   // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell
   // whose product is a forward difference of the flow: for models too large for 2N integrations.
   PetscErrorCode FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult);
 
   PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
-  PetscBool floquet = PETSC_TRUE;
+  PetscBool floquet = PETSC_TRUE, floquet_exact = PETSC_FALSE;
 
 private:
   friend struct ShootingCallbacks;
