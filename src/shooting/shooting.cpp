@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <functional>
 #include <cmath>
 
 namespace squeal {
@@ -50,22 +51,27 @@ struct ShootingCallbacks {
     PetscCall(MatShellGetContext(A, &s));
     PetscCall(VecZeroEntries(s->aU_));
     PetscCall(VecZeroEntries(s->adU_));
-    for (int part = 0; part < 2; ++part) {
-      PetscReal nv, nz;
-      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
-      Vec moved = part == 0 ? s->wU_ : s->wdU_, fixed = part == 0 ? s->wdU_ : s->wU_;
-      PetscCall(VecNorm(moved, NORM_2, &nv));
-      if (nv == 0) continue;
-      PetscCall(VecNorm(part == 0 ? s->mono_U0_ : s->mono_dU0_, NORM_2, &nz));
-      const PetscReal eps = s->fd_step * (nz > 0 ? nz : 1.0) / nv;
-      PetscCall(VecZeroEntries(fixed));
-      PetscCall(VecAYPX(s->wU_, eps, s->mono_U0_));
-      PetscCall(VecAYPX(s->wdU_, eps, s->mono_dU0_));
-      PetscCall(s->Flow(s->wU_, s->wdU_, s->mono_T_, s->U1_, s->dU1_));
-      PetscCall(VecAXPY(s->U1_, -1.0, s->mono_bU_));
-      PetscCall(VecAXPY(s->dU1_, -1.0, s->mono_bdU_));
-      PetscCall(VecAXPY(s->aU_, 1.0 / eps, s->U1_));
-      PetscCall(VecAXPY(s->adU_, 1.0 / eps, s->dU1_));
+    const PetscInt K = (PetscInt)s->mono_start_.size();
+    for (PetscInt k = 0; k < K; ++k) {
+      const auto &st = s->mono_start_[k];
+      const auto &bs = s->mono_base_[k];
+      for (int part = 0; part < 2; ++part) {
+        PetscReal nv, nz;
+        PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
+        Vec moved = part == 0 ? s->wU_ : s->wdU_, fixed = part == 0 ? s->wdU_ : s->wU_;
+        PetscCall(VecNorm(moved, NORM_2, &nv));
+        if (nv == 0) continue;
+        PetscCall(VecNorm(part == 0 ? s->mono_U0_ : s->mono_dU0_, NORM_2, &nz));
+        const PetscReal eps = s->fd_step * (nz > 0 ? nz : 1.0) / nv;
+        PetscCall(VecZeroEntries(fixed));
+        PetscCall(VecAYPX(s->wU_, eps, st.first));
+        PetscCall(VecAYPX(s->wdU_, eps, st.second));
+        PetscCall(s->Flow(s->wU_, s->wdU_, s->mono_T_, s->U1_, s->dU1_));
+        PetscCall(VecAXPY(s->U1_, -1.0, bs.first));
+        PetscCall(VecAXPY(s->dU1_, -1.0, bs.second));
+        PetscCall(VecAXPY(s->aU_, s->phase_w_[k] / eps, s->U1_));
+        PetscCall(VecAXPY(s->adU_, s->phase_w_[k] / eps, s->dU1_));
+      }
     }
     PetscCall(s->Pack(s->aU_, s->adU_, 0.0, y));
     PetscFunctionReturn(0);
@@ -170,12 +176,19 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscCall(PetscOptionsBool("-floquet", "Compute Floquet multipliers at convergence", "Shooting", floquet, &floquet, nullptr));
   PetscCall(PetscOptionsInt("-floquet_dense_max", "Largest 2N for the dense monodromy (2N flows); above: SLEPc, matrix-free",
                             "Shooting", floquet_dense_max, &floquet_dense_max, nullptr));
-  PetscCall(PetscOptionsBool("-floquet_exact", "Monodromy from exact tangents of the steps (dense theta back end) instead of 2N flows",
+  PetscCall(PetscOptionsBool("-floquet_exact", "Monodromy from exact step tangents (dense theta back end; else finite differences)",
                              "Shooting", floquet_exact, &floquet_exact, nullptr));
+  PetscCall(PetscOptionsInt("-floquet_phases",
+                            "Average the monodromy over this many starting points within one step of the orbit "
+                            "(0: Gauss points on each piece where the contact statuses do not change, 1: none, K > 1: K midpoints; "
+                            "default 0 for the dense monodromy, 1 for the matrix-free one)",
+                            "Shooting", floquet_phases, &floquet_phases, nullptr));
   PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
                             floquet_nev, &floquet_nev, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  PetscCheck(floquet_phases == PETSC_DECIDE || floquet_phases >= 0, comm_, kErrInput,
+             "option -shoot_floquet_phases = %" PetscInt_FMT ": expected >= 0", floquet_phases);
   PetscCheck(steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
 
   SNESLineSearch ls;
@@ -285,10 +298,11 @@ PetscErrorCode Shooting::Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end)
+PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end, std::vector<PetscInt> *transitions)
 {
   Eigen::VectorXd r = r_init_;
   StepInfo        info;
+  std::vector<int> prev, cur;
   PetscFunctionBeginUser;
   // A new period means a new step size: (S1)-(S3) again.
   if (T != T_setup_) {
@@ -297,10 +311,20 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   }
   PetscCall(VecCopy(U, U1));
   PetscCall(VecCopy(dU, dU1));
+  if (transitions) {
+    transitions->clear();
+    ti_->Contact().Status(r, prev);
+  }
   for (PetscInt i = 0; i < steps; ++i) {
     PetscCall(ti_->Step(U1, dU1, r, &info));
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
+    if (transitions) {
+      ti_->Contact().Status(r, cur);
+      for (size_t c = 0; c < cur.size(); ++c)
+        if (cur[c] != prev[c]) transitions->insert(transitions->end(), {i, (PetscInt)c, (PetscInt)cur[c]});
+      std::swap(prev, cur);
+    }
   }
   ++evaluations_;
   if (r_end) *r_end = r;
@@ -399,7 +423,6 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
   VecH bU, bdU;
   PetscCall(VecDuplicate(U0, bU.out()));
   PetscCall(VecDuplicate(U0, bdU.out()));
-  PetscCall(Flow(U0, dU0, T, bU, bdU));
   Mono.setZero(2 * N, 2 * N);
   VecScatter sc;
   Vec        z;
@@ -415,22 +438,27 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
     PetscFunctionReturn(0);
   };
   Eigen::VectorXd base(2 * N), col(2 * N);
-  PetscCall(gather(bU, base.head(N)));
-  PetscCall(gather(bdU, base.tail(N)));
-  for (PetscInt j = 0; j < 2 * N; ++j) {
-    const bool      disp  = j < N;
-    const PetscInt  i     = disp ? j : j - N;
-    // Forward (+delta) steps: a closed point pushed into the surface is projected back at once.
-    const PetscReal delta = fd_step * (disp ? (nU > 0 ? nU : 1.0) : (ndU > 0 ? ndU : 1.0));
-    PetscCall(VecCopy(U0, U_));
-    PetscCall(VecCopy(dU0, dU_));
-    if (i >= lo && i < hi) PetscCall(VecSetValue(disp ? U_ : dU_, i, delta, ADD_VALUES));
-    PetscCall(VecAssemblyBegin(disp ? U_ : dU_));
-    PetscCall(VecAssemblyEnd(disp ? U_ : dU_));
-    PetscCall(Flow(U_, dU_, T, U1_, dU1_));
-    PetscCall(gather(U1_, col.head(N)));
-    PetscCall(gather(dU1_, col.tail(N)));
-    Mono.col(j) = (col - base) / delta;
+  PetscCall(SetUpPhases(U0, dU0, T, true));
+  for (size_t k = 0; k < phase_s_.size(); ++k) {
+    PetscCall(PhaseStart(U0, dU0, phase_s_[k], bU, bdU));
+    PetscCall(Flow(bU, bdU, T, U1_, dU1_));
+    PetscCall(gather(U1_, base.head(N)));
+    PetscCall(gather(dU1_, base.tail(N)));
+    for (PetscInt j = 0; j < 2 * N; ++j) {
+      const bool      disp  = j < N;
+      const PetscInt  i     = disp ? j : j - N;
+      // Forward (+delta) steps: a closed point pushed into the surface is projected back at once.
+      const PetscReal delta = fd_step * (disp ? (nU > 0 ? nU : 1.0) : (ndU > 0 ? ndU : 1.0));
+      PetscCall(VecCopy(bU, U_));
+      PetscCall(VecCopy(bdU, dU_));
+      if (i >= lo && i < hi) PetscCall(VecSetValue(disp ? U_ : dU_, i, delta, ADD_VALUES));
+      PetscCall(VecAssemblyBegin(disp ? U_ : dU_));
+      PetscCall(VecAssemblyEnd(disp ? U_ : dU_));
+      PetscCall(Flow(U_, dU_, T, U1_, dU1_));
+      PetscCall(gather(U1_, col.head(N)));
+      PetscCall(gather(dU1_, col.tail(N)));
+      Mono.col(j) += phase_w_[k] * (col - base) / delta;
+    }
   }
   PetscCall(VecDestroy(&z));
   PetscCall(VecScatterDestroy(&sc));
@@ -440,28 +468,123 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
 PetscErrorCode Shooting::MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
 {
   PetscInt        N;
-  Eigen::VectorXd r = r_init_, vloc;
+  Eigen::VectorXd r, vloc;
   StepInfo        info;
   PetscFunctionBeginUser;
   PetscCall(VecGetSize(U0, &N));
+  PetscCheck(ti_->Dense(), comm_, PETSC_ERR_SUP, "the exact monodromy needs the dense theta back end (one rank, N <= -theta_dense_max)");
+  PetscCall(SetUpPhases(U0, dU0, T, true));
+  Mono.setZero(2 * N, 2 * N);
+  Eigen::MatrixXd dU, ddU;
+  for (size_t k = 0; k < phase_s_.size(); ++k) {
+    PetscCall(PhaseStart(U0, dU0, phase_s_[k], U1_, dU1_));
+    r = r_init_;
+    dU.setZero(N, 2 * N), ddU.setZero(N, 2 * N);
+    dU.leftCols(N).setIdentity();
+    ddU.rightCols(N).setIdentity();
+    for (PetscInt i = 0; i < steps; ++i) {
+      PetscCall(ti_->Step(U1_, dU1_, r, &info));
+      if (r.size()) PetscCall(ti_->Local(dU1_, vloc));
+      PetscCall(ti_->StepTangent(r, vloc, dU, ddU));
+    }
+    Mono.topRows(N) += phase_w_[k] * dU;
+    Mono.bottomRows(N) += phase_w_[k] * ddU;
+    ++evaluations_;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T)
+{
+  Eigen::VectorXd r = r_init_;
+  StepInfo        info;
+  PetscFunctionBeginUser;
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
     T_setup_ = T;
   }
-  PetscCheck(ti_->Dense(), comm_, PETSC_ERR_SUP, "the exact monodromy needs the dense theta back end (one rank, N <= -theta_dense_max)");
-  PetscCall(VecCopy(U0, U1_));
-  PetscCall(VecCopy(dU0, dU1_));
-  Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N, 2 * N), ddU = Eigen::MatrixXd::Zero(N, 2 * N);
-  dU.leftCols(N).setIdentity();
-  ddU.rightCols(N).setIdentity();
-  for (PetscInt i = 0; i < steps; ++i) {
-    PetscCall(ti_->Step(U1_, dU1_, r, &info));
-    if (r.size()) PetscCall(ti_->Local(dU1_, vloc));
-    PetscCall(ti_->StepTangent(r, vloc, dU, ddU));
+  if (!shiftU_) {
+    PetscCall(VecDuplicate(U0, shiftU_.out()));
+    PetscCall(VecDuplicate(U0, shiftdU_.out()));
   }
-  Mono.resize(2 * N, 2 * N);
-  Mono << dU, ddU;
-  ++evaluations_;
+  PetscCall(VecCopy(U0, shiftU_));
+  PetscCall(VecCopy(dU0, shiftdU_));
+  PetscCall(ti_->Step(shiftU_, shiftdU_, r, &info));
+  PetscCall(VecAXPY(shiftU_, -1.0, U0));
+  PetscCall(VecAXPY(shiftdU_, -1.0, dU0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::PhaseStart(Vec U0, Vec dU0, PetscReal s, Vec U, Vec dU)
+{
+  PetscFunctionBeginUser;
+  PetscCall(VecWAXPY(U, s, shiftU_, U0));
+  PetscCall(VecWAXPY(dU, s, shiftdU_, dU0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive_default)
+{
+  PetscInt K = floquet_phases;
+  PetscFunctionBeginUser;
+  PetscCall(ShiftAlongOrbit(U0, dU0, T));
+  phase_s_.clear(), phase_w_.clear();
+  if (K == PETSC_DECIDE) K = adaptive_default ? 0 : 1;
+  if (K == 1) {
+    phase_s_ = {0.0}, phase_w_ = {1.0};
+    PetscFunctionReturn(0);
+  }
+  if (K >= 2) { // midpoint rule
+    for (PetscInt k = 0; k < K; ++k) phase_s_.push_back((k + 0.5) / K), phase_w_.push_back(1.0 / K);
+    PetscFunctionReturn(0);
+  }
+  // K = 0: the phase s in [0, 1] moves every status change of the flow by one step. Between the
+  // values of s where one moves, the flow is smooth in s: find them by bisection on the list of
+  // transitions, then 3-point Gauss-Legendre on each smooth piece.
+  VecH sU, sdU, eU, edU;
+  for (VecH *v : {&sU, &sdU, &eU, &edU}) PetscCall(VecDuplicate(U0, v->out()));
+  auto signature = [&](PetscReal s, std::vector<PetscInt> &sig) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    PetscCall(PhaseStart(U0, dU0, s, sU, sdU));
+    PetscCall(Flow(sU, sdU, T, eU, edU, nullptr, &sig));
+    PetscFunctionReturn(0);
+  };
+  const PetscInt                     G = 8;
+  std::vector<std::vector<PetscInt>> sig(G + 1);
+  for (PetscInt j = 0; j <= G; ++j) PetscCall(signature((PetscReal)j / G, sig[j]));
+  std::vector<PetscReal> breaks;
+  std::function<PetscErrorCode(PetscReal, PetscReal, const std::vector<PetscInt> &, const std::vector<PetscInt> &)> bisect;
+  bisect = [&](PetscReal a, PetscReal b, const std::vector<PetscInt> &sa, const std::vector<PetscInt> &sb) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    if (b - a < 1e-7 || breaks.size() > 64) {
+      breaks.push_back(0.5 * (a + b));
+      PetscFunctionReturn(0);
+    }
+    std::vector<PetscInt> sm;
+    const PetscReal       m = 0.5 * (a + b);
+    PetscCall(signature(m, sm));
+    if (sm != sa) PetscCall(bisect(a, m, sa, sm));
+    if (sm != sb) PetscCall(bisect(m, b, sm, sb));
+    PetscFunctionReturn(0);
+  };
+  for (PetscInt j = 0; j < G; ++j)
+    if (sig[j] != sig[j + 1]) PetscCall(bisect((PetscReal)j / G, (PetscReal)(j + 1) / G, sig[j], sig[j + 1]));
+  if (breaks.size() > 64) {
+    // Too many status changes to resolve one by one (large contact sets): 64 midpoints.
+    PetscCall(PetscInfo(nullptr, "%zu status changes move with the phase: midpoint rule over 64 phases\n", breaks.size()));
+    for (PetscInt k = 0; k < 64; ++k) phase_s_.push_back((k + 0.5) / 64), phase_w_.push_back(1.0 / 64);
+    PetscFunctionReturn(0);
+  }
+  std::sort(breaks.begin(), breaks.end());
+  std::vector<PetscReal> ends{0.0};
+  for (PetscReal b : breaks) ends.push_back(b);
+  ends.push_back(1.0);
+  const PetscReal x[3] = {-std::sqrt(0.6), 0.0, std::sqrt(0.6)}, w[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
+  for (size_t p = 0; p + 1 < ends.size(); ++p) {
+    const PetscReal a = ends[p], b = ends[p + 1];
+    if (b - a < 1e-8) continue;
+    for (int q = 0; q < 3; ++q) phase_s_.push_back(0.5 * (a + b) + 0.5 * (b - a) * x[q]), phase_w_.push_back(0.5 * (b - a) * w[q]);
+  }
   PetscFunctionReturn(0);
 }
 
@@ -473,11 +596,21 @@ PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::ve
   VecH     z;
   PetscFunctionBeginUser;
   PetscCall(VecGetSize(U0, &N));
-  for (VecH *v : {&mono_U0_, &mono_dU0_, &mono_bU_, &mono_bdU_}) PetscCall(VecDuplicate(U0, v->out()));
+  for (VecH *v : {&mono_U0_, &mono_dU0_}) PetscCall(VecDuplicate(U0, v->out()));
   PetscCall(VecCopy(U0, mono_U0_));
   PetscCall(VecCopy(dU0, mono_dU0_));
   mono_T_ = T;
-  PetscCall(Flow(U0, dU0, T, mono_bU_, mono_bdU_));
+  // Starting points within one step of the orbit, and their flows (the bases of the differences).
+  PetscCall(SetUpPhases(U0, dU0, T, false));
+  const size_t K = phase_s_.size();
+  mono_start_.clear(), mono_base_.clear();
+  mono_start_.resize(K), mono_base_.resize(K);
+  for (size_t k = 0; k < K; ++k) {
+    for (VecH *v : {&mono_start_[k].first, &mono_start_[k].second, &mono_base_[k].first, &mono_base_[k].second})
+      PetscCall(VecDuplicate(U0, v->out()));
+    PetscCall(PhaseStart(U0, dU0, phase_s_[k], mono_start_[k].first, mono_start_[k].second));
+    PetscCall(Flow(mono_start_[k].first, mono_start_[k].second, T, mono_base_[k].first, mono_base_[k].second));
+  }
   // Z-space vectors: the shooting packing without T.
   PetscCall(VecCreateMPI(comm_, 2 * nloc_, PETSC_DETERMINE, z.out()));
   PetscCall(MatCreateShell(comm_, 2 * nloc_, 2 * nloc_, 2 * N, 2 * N, this, A.out()));
@@ -647,14 +780,23 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(VecGetSize(model.F, &N));
     if (2 * N <= floquet_dense_max) {
       Eigen::MatrixXd Mono;
+      const bool      exact = floquet_exact && ti_->Dense();
       if (floquet_exact && !ti_->Dense())
-        PetscCall(PetscPrintf(comm_, "shooting: -shoot_floquet_exact needs the dense theta back end (one rank, N <= -theta_dense_max); "
+        PetscCall(PetscPrintf(comm_, "shooting: exact monodromy needs the dense theta back end (one rank, N <= -theta_dense_max); "
                                      "using finite differences\n"));
-      if (floquet_exact && ti_->Dense()) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
+      res.floquet_method = exact ? "exact step tangents" : "finite differences";
+
+      if (exact) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
       else PetscCall(Monodromy(aU_, adU_, res.period, Mono));
+      res.floquet_phases = (PetscInt)phase_s_.size();
       Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
       for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
-    } else PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
+    } else {
+      res.floquet_method = "SLEPc, matrix-free finite differences";
+
+      PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
+      res.floquet_phases = (PetscInt)phase_s_.size();
+    }
     if (!res.floquet.empty()) {
       std::sort(res.floquet.begin(), res.floquet.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
       PetscReal best = PETSC_INFINITY, others = 0;
@@ -698,7 +840,8 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
                                                                                 : "pure sliding",
                                    100 * (double)res.frac_separated, 100 * (double)res.frac_stuck));
   if (!res.floquet.empty()) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (largest first); trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s\n",
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (%s, %" PetscInt_FMT " phase(s) in one step): trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s\n",
+                                     res.floquet_method.c_str(), res.floquet_phases,
                                      res.floquet[res.trivial].real(), res.floquet[res.trivial].imag(),
                                      std::abs(res.floquet[res.trivial] - 1.0), res.stable_cycle ? "STABLE" : "UNSTABLE"));
     for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
@@ -732,6 +875,10 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting", "reason", res.reason.c_str()));
   PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
+  if (!res.floquet.empty()) {
+    PetscCall(out.WriteAttribute("/shooting/floquet", "method", res.floquet_method.c_str()));
+    PetscCall(out.WriteAttribute("/shooting/floquet", "phases", res.floquet_phases));
+  }
   PetscCall(out.WriteAttribute("/shooting/period", "units", "s"));
   PetscCall(out.WriteAttribute("/shooting/Z0", "layout", "(U, dU)"));
   PetscFunctionReturn(0);
