@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <functional>
 #include <cmath>
+#include <cstdio>
 
 namespace squeal {
 
@@ -135,6 +136,24 @@ struct ShootingCallbacks {
           s->hist_res_[n - 3] > s->hist_res_[n - 4]) {
         *reason        = SNES_DIVERGED_DTOL;
         s->fail_reason_ = "the residual grew for 3 iterations in a row";
+      }
+      // Plain Newton caught in a 2-cycle: the period map is not smooth near the cycle (a short
+      // stick or contact phase that appears and disappears between the two iterates).
+      const auto &r = s->hist_res_, &Th = s->hist_T_;
+      if (n >= 6 && r[n - 1] > s->eps1) {
+        bool two_cycle = std::abs(r[n - 1] - r[n - 2]) > 1e-2 * r[n - 1];
+        for (size_t k = n - 1; k >= n - 2; --k)
+          two_cycle = two_cycle && std::abs(r[k] - r[k - 2]) < 1e-2 * r[k] && std::abs(r[k - 2] - r[k - 4]) < 1e-2 * r[k] &&
+                      std::abs(Th[k] - Th[k - 2]) < 1e-7 * Th[k] && std::abs(Th[k - 2] - Th[k - 4]) < 1e-7 * Th[k];
+        if (two_cycle) {
+          *reason = SNES_DIVERGED_DTOL;
+          char msg[320];
+          std::snprintf(msg, sizeof msg,
+                        "Newton alternates between two iterates (||H||/||Z0|| = %.2e and %.2e): the period map is not smooth "
+                        "near this cycle; try -shoot_snes_linesearch_type cp or more -shoot_steps",
+                        (double)r[n - 2], (double)r[n - 1]);
+          s->fail_reason_ = msg;
+        }
       }
       // Orbit collapsing onto the equilibrium: a trivial fixed point of the flow.
       PetscCall(VecWAXPY(s->tmp_, -1.0, s->Ue_, s->wU_));
@@ -549,14 +568,14 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
     PetscCall(Flow(sU, sdU, T, eU, edU, nullptr, &sig));
     PetscFunctionReturn(0);
   };
-  const PetscInt                     G = 8;
+  const PetscInt                     G = 4;
   std::vector<std::vector<PetscInt>> sig(G + 1);
   for (PetscInt j = 0; j <= G; ++j) PetscCall(signature((PetscReal)j / G, sig[j]));
   std::vector<PetscReal> breaks;
   std::function<PetscErrorCode(PetscReal, PetscReal, const std::vector<PetscInt> &, const std::vector<PetscInt> &)> bisect;
   bisect = [&](PetscReal a, PetscReal b, const std::vector<PetscInt> &sa, const std::vector<PetscInt> &sb) -> PetscErrorCode {
     PetscFunctionBeginUser;
-    if (b - a < 1e-7 || breaks.size() > 64) {
+    if (b - a < 1e-5 || breaks.size() > 64) {
       breaks.push_back(0.5 * (a + b));
       PetscFunctionReturn(0);
     }
