@@ -10,12 +10,15 @@ namespace squeal {
 
 namespace {
 
-// Full copy of a (small) distributed matrix on every rank, for the dense back end (one rank).
-Eigen::MatrixXd DenseCopy(Mat A, PetscInt n)
+// Full copy of a (small) distributed matrix on every rank, for the dense back end.
+// The whole matrix on every rank: own rows filled, then summed over the ranks.
+Eigen::MatrixXd DenseCopy(Mat A, PetscInt n, MPI_Comm comm)
 {
   Eigen::MatrixXd D = Eigen::MatrixXd::Zero(n, n);
   if (!A) return D;
-  for (PetscInt i = 0; i < n; ++i) {
+  PetscInt lo, hi;
+  PetscCallAbort(comm, MatGetOwnershipRange(A, &lo, &hi));
+  for (PetscInt i = lo; i < hi; ++i) {
     PetscInt           nc;
     const PetscInt    *cj;
     const PetscScalar *v;
@@ -23,6 +26,9 @@ Eigen::MatrixXd DenseCopy(Mat A, PetscInt n)
     for (PetscInt k = 0; k < nc; ++k) D(i, cj[k]) = PetscRealPart(v[k]);
     PetscCallAbort(PETSC_COMM_SELF, MatRestoreRow(A, i, &nc, &cj, &v));
   }
+  PetscMPIInt size;
+  MPI_Comm_size(comm, &size);
+  if (size > 1) MPI_Allreduce(MPI_IN_PLACE, D.data(), (int)(n * n), MPIU_REAL, MPI_SUM, comm);
   return D;
 }
 
@@ -52,6 +58,8 @@ PetscErrorCode AssembleH(const ContactSet &cs, Vec like, Mat *H)
 ThetaIntegrator::~ThetaIntegrator()
 {
   if (to_all_) PetscCallVoid(VecScatterDestroy(&to_all_));
+  if (dense_all_) PetscCallVoid(VecScatterDestroy(&dense_all_));
+  if (dense_z_) PetscCallVoid(VecDestroy(&dense_z_));
 }
 
 PetscErrorCode ThetaIntegrator::SetOptionsPrefix(const char *prefix)
@@ -107,7 +115,7 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "ThetaIntegrator::SetFixedPoint", fp_max_it_, &fp_max_it_, nullptr));
   SquealOptionsReal("-rho_scale", "Factor on the augmented-Lagrangian parameters rho of rule (2.4)",
                     "ThetaIntegrator::SetRhoScale", &rho_scale_, Range::Positive(), checks);
-  PetscCall(PetscOptionsInt("-dense_max", "Largest N for the dense one-rank back end (larger or distributed: sparse)",
+  PetscCall(PetscOptionsInt("-dense_max", "Largest N for the dense back end, replicated on every rank (larger: sparse, distributed)",
                             "ThetaIntegrator::SetDenseMax", dense_max_, &dense_max_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
@@ -130,7 +138,9 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   h_     = h;
   n_     = model.Size();
   nc_    = model.contacts.Size();
-  dense_ = size == 1 && n_ <= dense_max_;
+  // Small models run the dense step on every rank, on gathered states: cheaper than a
+  // distributed factorisation of a few hundred unknowns, and the same numbers on any rank count.
+  dense_ = n_ <= dense_max_;
   g0_.resize(nc_);
   for (PetscInt c = 0; c < nc_; ++c) g0_[c] = model.contacts.points[c].g0;
   wf_.resize(3 * nc_);
@@ -154,16 +164,19 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
 {
   const Model &m = *model_;
   PetscFunctionBeginUser;
-  Md_ = DenseCopy(m.M, n_);
-  Cd_ = DenseCopy(m.C, n_);
-  Kd_ = DenseCopy(m.K, n_);
-  Fd_.resize(n_);
-  {
-    const PetscScalar *f;
-    PetscCall(VecGetArrayRead(m.F, &f));
-    for (PetscInt i = 0; i < n_; ++i) Fd_[i] = PetscRealPart(f[i]);
-    PetscCall(VecRestoreArrayRead(m.F, &f));
+  Md_ = DenseCopy(m.M, n_, comm_);
+  Cd_ = DenseCopy(m.C, n_, comm_);
+  Kd_ = DenseCopy(m.K, n_, comm_);
+  PetscCallMPI(MPI_Comm_size(comm_, &size_));
+  if (size_ > 1 && (!dense_all_ || dense_for_ != model_)) {
+    if (dense_all_) PetscCall(VecScatterDestroy(&dense_all_));
+    if (dense_z_) PetscCall(VecDestroy(&dense_z_));
+    dense_for_ = model_;
+    PetscCall(VecScatterCreateToAll(m.F, &dense_all_, &dense_z_));
+    full_U_.resize(n_), full_dU_.resize(n_);
   }
+  Fd_.resize(n_);
+  PetscCall(Gather(m.F, Fd_));
   const PetscReal       h = h_, t = theta_;
   const Eigen::MatrixXd A = Md_ + h * t * Cd_ + h * h * t * t * Kd_;
   const Eigen::MatrixXd B = Md_ - h * (1 - t) * Cd_ - h * h * t * (1 - t) * Kd_;
@@ -252,15 +265,61 @@ PetscErrorCode ThetaIntegrator::ToLocal(Vec x, Eigen::VectorXd &out)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ThetaIntegrator::Gather(Vec x, Eigen::VectorXd &out)
+{
+  const PetscScalar *a;
+  PetscFunctionBeginUser;
+  out.resize(n_);
+  if (size_ == 1) {
+    PetscCall(VecGetArrayRead(x, &a));
+    for (PetscInt i = 0; i < n_; ++i) out[i] = PetscRealPart(a[i]);
+    PetscCall(VecRestoreArrayRead(x, &a));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(VecScatterBegin(dense_all_, x, dense_z_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(dense_all_, x, dense_z_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetArrayRead(dense_z_, &a));
+  for (PetscInt i = 0; i < n_; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(dense_z_, &a));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ThetaIntegrator::Local(Vec x, Eigen::VectorXd &out)
 {
   PetscFunctionBeginUser;
-  if (dense_) {
+  if (dense_ && size_ == 1) {
     const PetscScalar *a;
     PetscCall(VecGetArrayRead(x, &a));
     out.noalias() = Ht_ * Eigen::Map<const Eigen::VectorXd>(a, n_);
     PetscCall(VecRestoreArrayRead(x, &a));
+  } else if (dense_) {
+    PetscCall(Gather(x, full_U_));
+    out.noalias() = Ht_ * full_U_;
   } else PetscCall(ToLocal(x, out));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::DenseStep(Eigen::Ref<Eigen::VectorXd> Um, Eigen::Ref<Eigen::VectorXd> dUm, Eigen::VectorXd &r,
+                                          StepInfo *info)
+{
+  const PetscReal h = h_, t = theta_;
+  PetscFunctionBeginUser;
+  vf_.noalias() = P1_ * dUm;                       // (S4)
+  vf_.noalias() += P2_ * Um;
+  vf_ += p3_;
+  if (nc_ > 0) {
+    wf_.noalias() = Ht_ * vf_;                     // (S5)
+    dU0_          = Um + h * (1 - t) * dUm;
+    for (PetscInt c = 0; c < nc_; ++c) gap_[c] = Ht_.row(3 * c + kN).dot(dU0_) + g0_[c];
+    info->contact = local_.Solve(wf_, gap_, r);    // (S6)-(S7)
+    dU0_          = dUm;
+    dUm           = vf_;
+    dUm.noalias() += h * (Y_ * r);                 // (S8)
+  } else {
+    dU0_ = dUm;
+    dUm  = vf_;
+  }
+  Um += h * (t * dUm + (1 - t) * dU0_);            // (S9)
   PetscFunctionReturn(0);
 }
 
@@ -268,27 +327,25 @@ PetscErrorCode ThetaIntegrator::Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo
 {
   const PetscReal h = h_, t = theta_;
   PetscFunctionBeginUser;
-  if (dense_) {
+  if (dense_ && size_ > 1) {
+    // Every rank steps the whole gathered state, then keeps its own rows.
+    PetscCall(Gather(U, full_U_));
+    PetscCall(Gather(dU, full_dU_));
+    PetscCall(DenseStep(full_U_, full_dU_, r, info));
+    PetscScalar *u, *du;
+    PetscInt     lo, hi;
+    PetscCall(VecGetOwnershipRange(U, &lo, &hi));
+    PetscCall(VecGetArray(U, &u));
+    PetscCall(VecGetArray(dU, &du));
+    for (PetscInt i = lo; i < hi; ++i) u[i - lo] = full_U_[i], du[i - lo] = full_dU_[i];
+    PetscCall(VecRestoreArray(dU, &du));
+    PetscCall(VecRestoreArray(U, &u));
+  } else if (dense_) {
     PetscScalar *u, *du;
     PetscCall(VecGetArray(U, &u));
     PetscCall(VecGetArray(dU, &du));
     Eigen::Map<Eigen::VectorXd> Um(u, n_), dUm(du, n_);
-    vf_.noalias() = P1_ * dUm;                       // (S4)
-    vf_.noalias() += P2_ * Um;
-    vf_ += p3_;
-    if (nc_ > 0) {
-      wf_.noalias() = Ht_ * vf_;                     // (S5)
-      dU0_          = Um + h * (1 - t) * dUm;
-      for (PetscInt c = 0; c < nc_; ++c) gap_[c] = Ht_.row(3 * c + kN).dot(dU0_) + g0_[c];
-      info->contact = local_.Solve(wf_, gap_, r);    // (S6)-(S7)
-      dU0_          = dUm;
-      dUm           = vf_;
-      dUm.noalias() += h * (Y_ * r);                 // (S8)
-    } else {
-      dU0_ = dUm;
-      dUm  = vf_;
-    }
-    Um += h * (t * dUm + (1 - t) * dU0_);            // (S9)
+    PetscCall(DenseStep(Um, dUm, r, info));
     PetscCall(VecRestoreArray(dU, &du));
     PetscCall(VecRestoreArray(U, &u));
   } else {
@@ -327,7 +384,7 @@ PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eige
   const PetscReal   h = h_, t = theta_;
   const ContactSet &cs = model_->contacts;
   PetscFunctionBeginUser;
-  PetscCheck(dense_, comm_, PETSC_ERR_SUP, "the exact step tangent needs the dense back end (one rank, N <= -theta_dense_max)");
+  PetscCheck(dense_, comm_, PETSC_ERR_SUP, "the exact step tangent needs the dense back end (N <= -theta_dense_max)");
   const Eigen::Index k = dU.cols();
   tvf_.noalias() = P1_ * ddU;
   tvf_.noalias() += P2_ * dU;
@@ -362,13 +419,20 @@ PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eige
       // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
       const PetscReal mu = cs.mu, rn = r[n];
       if (rect) {
-        const PetscReal sg = v_end[o + kT] - cs.Speed(c) >= 0 ? 1.0 : -1.0;
+        const PetscReal sg = r[o + kT] > 0 ? -1.0 : 1.0; // sign(s_t), from r_t = -mu r_n sign(s_t)
         tA_(o + kT, o + kT) = 1.0, tA_(o + kT, n) = mu * sg;
         tA_(o + kB, o + kB) = 1.0;
         continue;
       }
       Eigen::Vector2d sv(v_end[o + kT] - cs.Speed(c), v_end[o + kB]);
       const PetscReal ns = sv.norm();
+      if (!(ns > 1e-14 * (std::abs(cs.Speed(c)) + 1.0))) { // slipping at zero speed: the stick rows
+        for (int j : {kT, kB}) {
+          tA_.row(o + j)   = h * W_.row(o + j);
+          trhs_.row(o + j) = -tw_.row(o + j);
+        }
+        continue;
+      }
       const Eigen::Vector2d sh = sv / ns;
       const Eigen::Matrix2d P  = (mu * rn / ns) * (Eigen::Matrix2d::Identity() - sh * sh.transpose());
       for (int a = 0; a < 2; ++a) {

@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Runs squeal shooting (the command after --) and checks /shooting: converged within the
 iteration budget, the trivial Floquet multiplier near 1, the regime of the cycle; with
---same-as CMD... (after a second --) also runs that command and requires the same period and Z0
-(e.g. serial against mpiexec -n 2)."""
+a second command (after a second --) and --other-output, also runs that command and requires the
+same period and Z0 (e.g. serial against mpiexec -n 2); --same-floquet also the same multipliers."""
 import argparse
 import subprocess
 import sys
@@ -32,6 +32,7 @@ def main():
     ap.add_argument("--output", required=True)
     ap.add_argument("--max-iterations", type=int, default=5)
     ap.add_argument("--other-output")
+    ap.add_argument("--same-floquet", action="store_true")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
@@ -56,6 +57,11 @@ def main():
             fails.append(f"period {o['period']} differs from {s['period']}")
         if np.linalg.norm(o["Z0"] - s["Z0"]) > 1e-6 * np.linalg.norm(s["Z0"]):
             fails.append("Z0 differs")
+        if a.same_floquet:
+            mo = np.sort(np.hypot(o["floquet"][:, 0], o["floquet"][:, 1]))
+            ms = np.sort(np.hypot(s["floquet"][:, 0], s["floquet"][:, 1]))
+            if mo.shape != ms.shape or np.max(np.abs(mo - ms)) > 1e-6:
+                fails.append(f"Floquet multipliers differ: {mo} vs {ms}")
     print(f"check_shooting: T = {s['period']:.9f} s, {s['iterations']} iterations, |L_trivial - 1| = {abs(L[s['trivial']] - 1):.2e}")
     if fails:
         sys.exit("check_shooting: FAILED: " + "; ".join(fails))

@@ -10,7 +10,8 @@
 //   (S5) w_f = H^T v_f,  g~^i_n = H_n^T (U^i + h(1-theta) dU^i) + g0
 //   (S6-7) local fixed point on r (LocalContactSolver)
 //   (S8) dU^{i+1} = v_f + h Y r,   (S9) U^{i+1} = U^i + h (theta dU^{i+1} + (1-theta) dU^i)
-// Two back ends with identical equations: "dense" (one rank, N <= -theta_dense_max, default 200;
+// Two back ends with identical equations: "dense" (N <= -theta_dense_max, default 200; under MPI
+// every rank steps the gathered state, so a small model costs the same on any rank count;
 // A^-1 B, A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written
 // loop would do) and "sparse" (distributed AIJ, A factorised once by KSP/PC: PETSc's Cholesky
 // on one rank, MUMPS LU on several; options -theta_ksp_*, -theta_pc_*). The dense matrices are N x N, so
@@ -69,6 +70,8 @@ public:
 
 private:
   PetscErrorCode SetUpDense();
+  PetscErrorCode DenseStep(Eigen::Ref<Eigen::VectorXd> U, Eigen::Ref<Eigen::VectorXd> dU, Eigen::VectorXd &r, StepInfo *info);
+  PetscErrorCode Gather(Vec x, Eigen::VectorXd &out); // the whole vector on every rank (dense back end)
   PetscErrorCode SetUpSparse();
   PetscErrorCode ToLocal(Vec x, Eigen::VectorXd &out); // sparse back end: H^T x gathered
 
@@ -88,6 +91,11 @@ private:
   // dense back end
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
+  PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
+  VecScatter      dense_all_ = nullptr;
+  Vec             dense_z_   = nullptr;
+  const Model    *dense_for_ = nullptr;
+  Eigen::VectorXd full_U_, full_dU_;
   Eigen::MatrixXd tvf_, tw_, tg_, trhs_, tA_, tdr_; // StepTangent work arrays
   std::vector<int> tstatus_;
 

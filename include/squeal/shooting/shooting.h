@@ -49,6 +49,10 @@ struct ShootingResult {
   std::vector<std::complex<PetscReal>> floquet;            // by decreasing modulus
   std::string                          floquet_method;     // how the monodromy was obtained
   PetscInt                             floquet_phases = 0; // starting points averaged over
+  // With the phase average: the multipliers of the discrete map's own Jacobian at Z0.
+  std::vector<std::complex<PetscReal>> floquet_at_z0;
+  PetscInt                             trivial_at_z0 = -1;
+  PetscReal                            largest_at_z0 = 0;  // largest non-trivial |L| at Z0
   PetscInt                             trivial = -1;       // index of the multiplier closest to 1
   bool                                 stable_cycle = false;
   std::vector<PetscReal>               orbit_t, orbit_U;   // one period, rank 0
