@@ -1,5 +1,6 @@
 #include "squeal/integration/theta.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 #include "squeal/core/sparse.h"
@@ -58,8 +59,6 @@ PetscErrorCode AssembleH(const ContactSet &cs, Vec like, Mat *H)
 ThetaIntegrator::~ThetaIntegrator()
 {
   if (to_all_) PetscCallVoid(VecScatterDestroy(&to_all_));
-  if (dense_all_) PetscCallVoid(VecScatterDestroy(&dense_all_));
-  if (dense_z_) PetscCallVoid(VecDestroy(&dense_z_));
 }
 
 PetscErrorCode ThetaIntegrator::SetOptionsPrefix(const char *prefix)
@@ -168,11 +167,9 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   Cd_ = DenseCopy(m.C, n_, comm_);
   Kd_ = DenseCopy(m.K, n_, comm_);
   PetscCallMPI(MPI_Comm_size(comm_, &size_));
-  if (size_ > 1 && (!dense_all_ || dense_for_ != model_)) {
-    if (dense_all_) PetscCall(VecScatterDestroy(&dense_all_));
-    if (dense_z_) PetscCall(VecDestroy(&dense_z_));
+  if (size_ > 1 && (!gather_.Ready() || dense_for_ != model_)) {
+    PetscCall(gather_.SetUp(m.F));
     dense_for_ = model_;
-    PetscCall(VecScatterCreateToAll(m.F, &dense_all_, &dense_z_));
     full_U_.resize(n_), full_dU_.resize(n_);
   }
   Fd_.resize(n_);
@@ -276,11 +273,7 @@ PetscErrorCode ThetaIntegrator::Gather(Vec x, Eigen::VectorXd &out)
     PetscCall(VecRestoreArrayRead(x, &a));
     PetscFunctionReturn(0);
   }
-  PetscCall(VecScatterBegin(dense_all_, x, dense_z_, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(dense_all_, x, dense_z_, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecGetArrayRead(dense_z_, &a));
-  for (PetscInt i = 0; i < n_; ++i) out[i] = PetscRealPart(a[i]);
-  PetscCall(VecRestoreArrayRead(dense_z_, &a));
+  PetscCall(gather_(x, out));
   PetscFunctionReturn(0);
 }
 

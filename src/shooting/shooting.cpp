@@ -1,5 +1,6 @@
 #include "squeal/shooting/shooting.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
@@ -445,19 +446,8 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
   PetscCall(VecDuplicate(U0, bU.out()));
   PetscCall(VecDuplicate(U0, bdU.out()));
   Mono.setZero(2 * N, 2 * N);
-  VecScatter sc;
-  Vec        z;
-  PetscCall(VecScatterCreateToAll(U0, &sc, &z));
-  auto gather = [&](Vec v, Eigen::Ref<Eigen::VectorXd> out) -> PetscErrorCode {
-    const PetscScalar *a;
-    PetscFunctionBeginUser;
-    PetscCall(VecScatterBegin(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecGetArrayRead(z, &a));
-    for (PetscInt i = 0; i < N; ++i) out[i] = PetscRealPart(a[i]);
-    PetscCall(VecRestoreArrayRead(z, &a));
-    PetscFunctionReturn(0);
-  };
+  AllGather gather;
+  PetscCall(gather.SetUp(U0));
   Eigen::VectorXd base(2 * N), col(2 * N);
   PetscCall(SetUpPhases(U0, dU0, T, true));
   for (size_t k = 0; k < phase_s_.size(); ++k) {
@@ -481,8 +471,6 @@ PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd
       Mono.col(j) += phase_w_[k] * (col - base) / delta;
     }
   }
-  PetscCall(VecDestroy(&z));
-  PetscCall(VecScatterDestroy(&sc));
   PetscFunctionReturn(0);
 }
 

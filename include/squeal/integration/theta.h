@@ -20,6 +20,7 @@
 #pragma once
 
 #include "squeal/contact/local_solver.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/handle.h"
 #include "squeal/model/model.h"
 
@@ -92,8 +93,7 @@ private:
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
   PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
-  VecScatter      dense_all_ = nullptr;
-  Vec             dense_z_   = nullptr;
+  AllGather       gather_;
   const Model    *dense_for_ = nullptr;
   Eigen::VectorXd full_U_, full_dU_;
   Eigen::MatrixXd tvf_, tw_, tg_, trhs_, tA_, tdr_; // StepTangent work arrays

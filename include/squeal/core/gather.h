@@ -1,0 +1,26 @@
+// A small distributed vector in full on every rank, as the dense back ends and the dense
+// monodromy need it: one to-all scatter, reused.
+#pragma once
+
+#include "squeal/core/handle.h"
+
+#include <petscvec.h>
+
+#include <Eigen/Dense>
+
+namespace squeal {
+
+class AllGather {
+public:
+  // Sets up the scatter for vectors laid out like `like` (collective).
+  PetscErrorCode SetUp(Vec like);
+  // out = x in full on every rank (collective); out must have the global size.
+  PetscErrorCode operator()(Vec x, Eigen::Ref<Eigen::VectorXd> out);
+  bool Ready() const { return static_cast<bool>(scatter_); }
+
+private:
+  Handle<VecScatter> scatter_;
+  VecH               full_;
+};
+
+} // namespace squeal
