@@ -243,9 +243,6 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
   // smooth: the step in which the impact falls moves as the orbit shifts, so the secants differ
   // by an amount that does not shrink with h. That is the miss of the trivial multiplier of the
   // discrete map's own Jacobian (-shoot_floquet_phases 1), and the reason for the phase average.
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size > 1) GTEST_SKIP() << "serial numerics (reads the converged Z0, held on rank 0)";
   ThreeDofParams p; // case 1: separation/slip, one impact per period
   const PetscInt N = 3;
   std::vector<double> spread_at;
@@ -309,10 +306,7 @@ TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
 {
   // method.md §6: the product of the exact step tangents (statuses held fixed) against the 2N
   // forward-difference flows, at the converged cycles of both cases (planar) and of
-  // the 4-contact chain. Dense back end: one rank.
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size > 1) GTEST_SKIP() << "serial test (reads the converged Z0, held on rank 0)";
+  // the 4-contact chain (dense back end, replicated on every rank under MPI).
   ThreeDofParams c1, c2;
   c2.V = 0.75;
   Problem p1(c1), p2(c2);
@@ -322,10 +316,14 @@ TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
     pr->sh.floquet = PETSC_FALSE;
     ShootingResult sr;
     ASSERT_EQ(pr->sh.Solve(pr->model, pr->eq, pr->ti, pr->est.U0, pr->est.dU0, pr->est.T0, sr), 0);
-    const PetscInt N = (PetscInt)sr.Z0.size() / 2;
-    Vec            U0, dU0;
+    PetscInt N, lo, hi;
+    Vec      U0, dU0;
     VecDuplicate(pr->eq.U, &U0), VecDuplicate(pr->eq.U, &dU0);
-    for (PetscInt i = 0; i < N; ++i) VecSetValue(U0, i, sr.Z0[i], INSERT_VALUES), VecSetValue(dU0, i, sr.Z0[N + i], INSERT_VALUES);
+    VecGetSize(U0, &N), VecGetOwnershipRange(U0, &lo, &hi);
+    std::vector<double> z(2 * N, 0.0);
+    if (Rank0()) z = sr.Z0; // held on rank 0
+    MPI_Bcast(z.data(), (int)(2 * N), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+    for (PetscInt i = lo; i < hi; ++i) VecSetValue(U0, i, z[i], INSERT_VALUES), VecSetValue(dU0, i, z[N + i], INSERT_VALUES);
     VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
     Eigen::MatrixXd fd, exact;
     pr->sh.floquet_phases = 1; // the discrete map's own monodromy
@@ -342,7 +340,7 @@ TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
       for (Eigen::Index j = 0; j < lf.size(); ++j) best = std::min(best, std::abs(le[i] - lf[j]));
       EXPECT_LT(best, 1e-4) << "multiplier " << le[i];
     }
-    std::printf("  N = %d: exact vs finite-difference monodromy, worst column %.2e\n", (int)N, worst);
+    if (Rank0()) std::printf("  N = %d: exact vs finite-difference monodromy, worst column %.2e\n", (int)N, worst);
     VecDestroy(&U0), VecDestroy(&dU0);
   }
 }
@@ -355,9 +353,6 @@ TEST(Shooting, PhaseAveragedMultipliersConvergeWithTheStep)
   // statuses do not change) is the derivative of a smooth map: its multipliers converge
   // monotonically with N_s, and its trivial multiplier is 1 up to the quadrature and the shooting
   // residual (by construction: the average maps the one-step shift d to Phi(Z0+d) - Phi(Z0) = d).
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size > 1) GTEST_SKIP() << "serial numerics (the same on 2 ranks: mpi_case2_shooting_np2 compares the multipliers)";
   ThreeDofParams      p;
   std::vector<double> averaged, single;
   for (PetscInt steps : {500, 1000, 2000, 4000}) {
@@ -374,7 +369,7 @@ TEST(Shooting, PhaseAveragedMultipliersConvergeWithTheStep)
       (phases == 1 ? single : averaged).push_back(second);
       if (phases == PETSC_DECIDE) EXPECT_LT(std::abs(sr.floquet[sr.trivial] - 1.0), 1e-6) << "N_s = " << steps; // measured 2e-9 to 9e-9
       else EXPECT_LT(std::abs(sr.floquet[sr.trivial] - 1.0), 1e-2) << "N_s = " << steps;
-      std::printf("  N_s = %4d, %s: |L_2| = %.6f, |L_trivial - 1| = %.2e\n", (int)steps, phases == 1 ? "at Z0   " : "averaged", second,
+      if (Rank0()) std::printf("  N_s = %4d, %s: |L_2| = %.6f, |L_trivial - 1| = %.2e\n", (int)steps, phases == 1 ? "at Z0   " : "averaged", second,
                   std::abs(sr.floquet[sr.trivial] - 1.0));
     }
   }
@@ -393,9 +388,6 @@ TEST(Shooting, RectilinearCycleNamesTheTwoCycleAndConvergesWithADampedNewton)
   // (a stick step there in one, not in the other); the run stops on that with a hint instead of
   // spending the iteration budget. The critical-point line search converges, to the period of
   // a long transient (0.0111794 s at h = T_lin / 1000).
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size > 1) GTEST_SKIP() << "serial numerics (shooting under MPI: the mpi_case*_np2 scene tests)";
   ThreeDofParams p;
   p.law = FrictionLaw::Rectilinear;
   {
@@ -416,6 +408,7 @@ TEST(Shooting, RectilinearCycleNamesTheTwoCycleAndConvergesWithADampedNewton)
   EXPECT_TRUE(sr.converged);
   EXPECT_LE(sr.iterations, 10); // measured 8
   EXPECT_NEAR(sr.period / 0.0111794, 1.0, 1e-4);
+  if (!Rank0()) return; // the orbit summary is held on rank 0
   EXPECT_GT(sr.frac_stuck, 0.0);
   EXPECT_GT(sr.frac_separated, 0.1);
 }
