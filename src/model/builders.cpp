@@ -1,4 +1,5 @@
 #include "squeal/model/builders.h"
+#include "squeal/model/pad.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 #include "squeal/core/sparse.h"
@@ -274,13 +275,14 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
 
 PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir)
 {
-  const char *const types[] = {"three_dof", "chain", "file"};
+  const char *const types[] = {"three_dof", "chain", "file", "pad"};
   const char *const laws[]  = {"planar", "rectilinear"};
   const char *const frames[] = {"sliding", "spring"};
   PetscInt          type = 0, law = 0, frame = 0;
   ChainParams       ch;
   ThreeDofParams   &p = ch.cell;
   FileModelSpec     fs;
+  PadParams         pad;
   char              buf[PETSC_MAX_PATH_LEN] = "";
   char              exportdir[PETSC_MAX_PATH_LEN] = "";
   PetscBool         help = PETSC_FALSE, set;
@@ -298,9 +300,9 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   PetscCall(checks.Run(comm));
 
   PetscOptionsBegin(comm, "model_", "Structural model", "Model");
-  PetscCall(PetscOptionsEList("-type", "Model: three_dof (reference system), chain (synthetic multi-contact), file",
-                              "ModelCreateFromOptions", types, 3, types[type], &type, nullptr));
-  if (type != 2 || help) {
+  PetscCall(PetscOptionsEList("-type", "Model: three_dof (reference system), chain (synthetic multi-contact), file, pad (FE brake pad)",
+                              "ModelCreateFromOptions", types, 4, types[type], &type, nullptr));
+  if (type == 0 || type == 1 || help) {
     SquealOptionsReal("-m", "Mass (kg)", "BuildThreeDof", &p.m, Range::Positive(), checks);
     SquealOptionsReal("-k1", "Spring 1 stiffness projected on x (N/m)", "BuildThreeDof", &p.k1, Range::Positive(), checks);
     SquealOptionsReal("-k2", "Spring 2 stiffness projected on y (N/m)", "BuildThreeDof", &p.k2, Range::Positive(), checks);
@@ -345,6 +347,7 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
       if (set) *f.dst = buf;
     }
   }
+  if (type == 3 || help) PetscCall(PadOptions(PetscOptionsObject, pad, checks));
   PetscCall(PetscOptionsString("-export", "Write the built model (M, C, K, F, contacts.txt) to this directory", "Model::Export",
                                exportdir, exportdir, sizeof(exportdir), nullptr));
   PetscOptionsEnd();
@@ -355,9 +358,13 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   fs.mu          = p.mu;
   fs.V           = p.V;
   fs.law         = p.law;
+  pad.mu         = p.mu;
+  pad.V          = p.V;
+  pad.law        = p.law;
   switch (type) {
   case 0: PetscCall(BuildThreeDof(comm, p, model)); break;
   case 1: PetscCall(BuildChain(comm, ch, model)); break;
+  case 3: PetscCall(BuildPad(comm, pad, model)); break;
   default: PetscCall(BuildFromFiles(comm, fs, model)); break;
   }
   if (export_dir) *export_dir = exportdir;
