@@ -177,7 +177,8 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   const PetscReal       h = h_, t = theta_;
   const Eigen::MatrixXd A = Md_ + h * t * Cd_ + h * h * t * t * Kd_;
   const Eigen::MatrixXd B = Md_ - h * (1 - t) * Cd_ - h * h * t * (1 - t) * Kd_;
-  Eigen::LLT<Eigen::MatrixXd> llt(A);
+  Eigen::LLT<Eigen::MatrixXd> &llt = llt_;
+  llt.compute(A);
   PetscCheck(llt.info() == Eigen::Success, comm_, kErrInput,
              "theta-method: A = M + h theta C + h^2 theta^2 K is not positive definite (h = %g)", (double)h);
   Ht_.setZero(3 * nc_, n_);
@@ -374,6 +375,36 @@ PetscErrorCode ThetaIntegrator::Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo
 PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, Eigen::MatrixXd &dU,
                                             Eigen::MatrixXd &ddU)
 {
+  PetscFunctionBeginUser;
+  PetscCall(StepTangentImpl(r, v_end, nullptr, nullptr, dU, ddU));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData &step,
+                                            const Eigen::RowVectorXd &dh, Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU)
+{
+  PetscFunctionBeginUser;
+  PetscCall(StepTangentImpl(r, v_end, &step, &dh, dU, ddU));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::StepTangentSource(const Eigen::VectorXd &Ui, const Eigen::VectorXd &dUi, const Eigen::VectorXd &dUn,
+                                                  const Eigen::VectorXd &r, Eigen::VectorXd &c)
+{
+  const PetscReal h = h_, t = theta_;
+  PetscFunctionBeginUser;
+  PetscCheck(dense_, comm_, PETSC_ERR_SUP, "the exact step tangent needs the dense back end (N <= -theta_dense_max)");
+  tq_ = Fd_;
+  tq_.noalias() -= Kd_ * (Ui + 2 * h * t * (1 - t) * dUi + 2 * h * t * t * dUn);
+  if (model_->HasDamping()) tq_.noalias() -= Cd_ * ((1 - t) * dUi + t * dUn);
+  c = llt_.solve(tq_);
+  if (nc_ > 0) c.noalias() += Y_ * r;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step,
+                                                const Eigen::RowVectorXd *dh, Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU)
+{
   const PetscReal   h = h_, t = theta_;
   const ContactSet &cs = model_->contacts;
   PetscFunctionBeginUser;
@@ -381,68 +412,84 @@ PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eige
   const Eigen::Index k = dU.cols();
   tvf_.noalias() = P1_ * ddU;
   tvf_.noalias() += P2_ * dU;
+  if (dh) tvf_.noalias() += *step->c * *dh;
   if (nc_ > 0) {
-    const PetscInt m = 3 * nc_;
-    tw_.noalias() = Ht_ * tvf_;                                        // delta w_f
-    tg_.noalias() = Ht_ * (dU + h * (1 - t) * ddU);                    // rows kN: delta g~^i
-    tA_.setZero(m, m);
-    trhs_.setZero(m, k);
     local_.Status(r, tstatus_);
-    for (PetscInt c = 0; c < nc_; ++c) {
-      const PetscInt o = 3 * c, n = o + kN;
-      if (tstatus_[c] == kOpen) {
-        for (int j = 0; j < 3; ++j) tA_(o + j, o + j) = 1.0;           // delta r_c = 0
-        continue;
+    // Open points keep delta r = 0 and drop out: the system couples the closed points only.
+    tclosed_.clear();
+    for (PetscInt c = 0; c < nc_; ++c)
+      if (tstatus_[c] != kOpen)
+        for (int j = 0; j < 3; ++j) tclosed_.push_back(3 * c + j);
+    const Eigen::Index m = (Eigen::Index)tclosed_.size();
+    if (m > 0) {
+      tw_.resize(m, k), tg_.resize(m, k);
+      for (Eigen::Index q = 0; q < m; ++q) tw_.row(q).noalias() = Ht_.row(tclosed_[q]) * tvf_; // delta w_f
+      for (Eigen::Index q = 0; q < m; q += 3) {                                                  // delta g~^i
+        const Eigen::Index n = tclosed_[q] + kN;
+        tg_.row(q + kN).noalias() = Ht_.row(n) * dU;
+        tg_.row(q + kN).noalias() += (h * (1 - t)) * (Ht_.row(n) * ddU);
       }
-      // Normal row: delta g~_n + h delta v_n = 0, delta v = delta w_f + h W delta r.
-      tA_.row(n)   = h * h * W_.row(n);
-      trhs_.row(n) = -tg_.row(n) - h * tw_.row(n);
-      const bool rect = cs.law == FrictionLaw::Rectilinear;
-      if (tstatus_[c] == kStick) {
-        for (int j : {kT, kB}) {
-          if (rect && j == kB) {
-            tA_(o + j, o + j) = 1.0;                                    // delta r_b = 0
-            continue;
+      tAc_.setZero(m, m);
+      trc_.setZero(m, k);
+      auto Wrow = [&](Eigen::Index row, Eigen::Index q, PetscReal a) { // tAc_.row(q) += a W(row, closed)
+        for (Eigen::Index p = 0; p < m; ++p) tAc_(q, p) += a * W_(row, tclosed_[p]);
+      };
+      for (Eigen::Index q0 = 0; q0 < m; q0 += 3) {
+        const PetscInt     c = tclosed_[q0] / 3;
+        const Eigen::Index o = 3 * c, qn = q0 + kN;
+        // Normal row: delta g~_n + h delta v_n = 0, delta v = delta w_f + h W delta r; in h also
+        // d g~_n / dh = (1 - theta) v_n(t_i) and d (h v_n) / dh = v_n(t_{i+1}).
+        Wrow(o + kN, qn, h * h);
+        trc_.row(qn) = -tg_.row(qn) - h * tw_.row(qn);
+        if (dh) trc_.row(qn) -= ((1 - t) * (*step->v_start)[o + kN] + v_end[o + kN]) * *dh;
+        const bool rect = cs.law == FrictionLaw::Rectilinear;
+        if (tstatus_[c] == kStick) {
+          for (int j : {kT, kB}) {
+            if (rect && j == kB) {
+              tAc_(q0 + j, q0 + j) = 1.0;                                 // delta r_b = 0
+              continue;
+            }
+            Wrow(o + j, q0 + j, h);                                       // delta v_j = 0
+            trc_.row(q0 + j) = -tw_.row(q0 + j);
           }
-          tA_.row(o + j)   = h * W_.row(o + j);                         // delta v_j = 0
-          trhs_.row(o + j) = -tw_.row(o + j);
+          continue;
         }
-        continue;
-      }
-      // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
-      const PetscReal mu = cs.mu, rn = r[n];
-      if (rect) {
-        const PetscReal sg = r[o + kT] > 0 ? -1.0 : 1.0; // sign(s_t), from r_t = -mu r_n sign(s_t)
-        tA_(o + kT, o + kT) = 1.0, tA_(o + kT, n) = mu * sg;
-        tA_(o + kB, o + kB) = 1.0;
-        continue;
-      }
-      Eigen::Vector2d sv(v_end[o + kT] - cs.Speed(c), v_end[o + kB]);
-      const PetscReal ns = sv.norm();
-      if (!(ns > 1e-14 * (std::abs(cs.Speed(c)) + 1.0))) { // slipping at zero speed: the stick rows
-        for (int j : {kT, kB}) {
-          tA_.row(o + j)   = h * W_.row(o + j);
-          trhs_.row(o + j) = -tw_.row(o + j);
+        // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
+        const PetscReal mu = cs.mu, rn = r[o + kN];
+        if (rect) {
+          const PetscReal sg = r[o + kT] > 0 ? -1.0 : 1.0; // sign(s_t), from r_t = -mu r_n sign(s_t)
+          tAc_(q0 + kT, q0 + kT) = 1.0, tAc_(q0 + kT, qn) = mu * sg;
+          tAc_(q0 + kB, q0 + kB) = 1.0;
+          continue;
         }
-        continue;
-      }
-      const Eigen::Vector2d sh = sv / ns;
-      const Eigen::Matrix2d P  = (mu * rn / ns) * (Eigen::Matrix2d::Identity() - sh * sh.transpose());
-      for (int a = 0; a < 2; ++a) {
-        const int ra = a == 0 ? kT : kB;
-        tA_(o + ra, o + ra) += 1.0;
-        tA_(o + ra, n) += mu * sh[a];
-        for (int b = 0; b < 2; ++b) {
-          const int rb = b == 0 ? kT : kB;
-          tA_.row(o + ra) += P(a, b) * h * W_.row(o + rb);
-          trhs_.row(o + ra) -= P(a, b) * tw_.row(o + rb);
+        Eigen::Vector2d sv(v_end[o + kT] - cs.Speed(c), v_end[o + kB]);
+        const PetscReal ns = sv.norm();
+        if (!(ns > 1e-14 * (std::abs(cs.Speed(c)) + 1.0))) { // slipping at zero speed: the stick rows
+          for (int j : {kT, kB}) {
+            Wrow(o + j, q0 + j, h);
+            trc_.row(q0 + j) = -tw_.row(q0 + j);
+          }
+          continue;
+        }
+        const Eigen::Vector2d sh = sv / ns;
+        const Eigen::Matrix2d P  = (mu * rn / ns) * (Eigen::Matrix2d::Identity() - sh * sh.transpose());
+        for (int a = 0; a < 2; ++a) {
+          const int ra = a == 0 ? kT : kB;
+          tAc_(q0 + ra, q0 + ra) += 1.0;
+          tAc_(q0 + ra, qn) += mu * sh[a];
+          for (int b = 0; b < 2; ++b) {
+            const int rb = b == 0 ? kT : kB;
+            Wrow(o + rb, q0 + ra, P(a, b) * h);
+            trc_.row(q0 + ra) -= P(a, b) * tw_.row(q0 + rb);
+          }
         }
       }
+      tdr_ = tAc_.partialPivLu().solve(trc_);
+      for (Eigen::Index q = 0; q < m; ++q) tvf_.noalias() += h * Y_.col(tclosed_[q]) * tdr_.row(q); // delta dU^{i+1}
     }
-    tdr_ = tA_.partialPivLu().solve(trhs_);
-    tvf_.noalias() += h * (Y_ * tdr_);                                 // delta dU^{i+1}
   }
   dU += h * (t * tvf_ + (1 - t) * ddU);
+  if (dh) dU.noalias() += (t * *step->dUn + (1 - t) * *step->dUi) * *dh;
   ddU = tvf_;
   PetscFunctionReturn(0);
 }

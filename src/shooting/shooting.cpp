@@ -27,12 +27,31 @@ struct ShootingCallbacks {
     auto *s = static_cast<Shooting *>(ctx);
     PetscBool same = PETSC_FALSE;
     PetscFunctionBeginUser;
+    if (s->ExactJacobian()) {
+      // Products are tangents along the residual's flow at x, stored when SNES computed it.
+      PetscCall(s->EnsureTrajectory(x));
+      if (s->jdense_) PetscCall(s->BuildDenseJacobian(x));
+      PetscCall(VecCopy(x, s->xbase_));
+      PetscFunctionReturn(0);
+    }
     // The base point of the products: reuse the residual SNES just computed there.
     if (s->xbase_) PetscCall(VecEqual(x, s->xbase_, &same));
     if (!same) {
       PetscCall(VecCopy(x, s->xbase_));
       PetscCall(s->Residual(x, s->fbase_));
     }
+    PetscFunctionReturn(0);
+  }
+  // The dense bordered Jacobian's LU as preconditioner: GMRES converges in one iteration.
+  static PetscErrorCode DenseSolve(PC pc, Vec v, Vec y)
+  {
+    Shooting       *s;
+    Eigen::VectorXd z;
+    PetscFunctionBeginUser;
+    PetscCall(PCShellGetContext(pc, &s));
+    PetscCall(s->ToNatural(v, z));
+    z = s->jlu_.solve(z);
+    PetscCall(s->FromNatural(z, y));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode Mult(Mat J, Vec v, Vec y)
@@ -86,8 +105,20 @@ struct ShootingCallbacks {
     PetscCall(SNESGetApplicationContext(snes, &s));
     PetscCall(SNESGetSolution(snes, &x));
     PetscCall(s->SetAnchor(x));
-    // The anchor changed: the cached base residual is stale.
-    PetscCall(VecSet(s->xbase_, PETSC_INFINITY));
+    // The new anchor is x itself, so the phase row of F(x) is 0: set it rather than integrate
+    // the period again, for SNES's right-hand side and for the base of difference products.
+    Vec f;
+    PetscInt nl;
+    PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
+    PetscCall(VecGetLocalSize(f, &nl));
+    if (nl > 2 * s->nloc_) {
+      PetscScalar *a;
+      PetscCall(VecGetArray(f, &a));
+      a[2 * s->nloc_] = 0;
+      PetscCall(VecRestoreArray(f, &a));
+    }
+    PetscCall(VecCopy(x, s->xbase_));
+    PetscCall(VecCopy(f, s->fbase_));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode Converged(SNES snes, PetscInt it, PetscReal, PetscReal, PetscReal fnorm, SNESConvergedReason *reason,
@@ -203,6 +234,14 @@ PetscErrorCode Shooting::SetFromOptions()
                             "(0: Gauss points on each piece where the contact statuses do not change, 1: none, K > 1: K midpoints; "
                             "default 0 for the dense monodromy, 1 for the matrix-free one)",
                             "Shooting", floquet_phases, &floquet_phases, nullptr));
+  PetscCall(PetscOptionsBool("-exact_jacobian",
+                             "Jacobian products from the exact step tangents along the stored flow (dense theta back end; "
+                             "else finite differences of the flow)",
+                             "Shooting", exact_jacobian, &exact_jacobian, nullptr));
+  PetscCall(PetscOptionsInt("-jacobian_dense_max",
+                            "Largest 2N + 1 for which the exact bordered Jacobian is built in one tangent integration and factorised "
+                            "(above: GMRES on tangent products)",
+                            "Shooting", jacobian_dense_max, &jacobian_dense_max, nullptr));
   PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
                             floquet_nev, &floquet_nev, nullptr));
   PetscOptionsEnd();
@@ -252,7 +291,12 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
     r_init_[3 * c + kT] = model.contacts.mu * eq.N[c];
     r_init_[3 * c + kN] = eq.N[c];
   }
-  for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_}) PetscCall(CreateState(v->out()));
+  for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_, &lastx_, &trx_, &jx_}) PetscCall(CreateState(v->out()));
+  for (VecH *v : {&lastU1_, &lastdU1_}) PetscCall(VecDuplicate(model.F, v->out()));
+  PetscCallMPI(MPI_Comm_size(comm_, &size_));
+  PetscCall(VecGetSize(model.F, &N_));
+  if (size_ > 1) PetscCall(gather_.SetUp(model.F));
+  last_valid_ = tr_valid_ = false;
   PetscCall(VecSet(xbase_, PETSC_INFINITY));
   // M^-1 for the vector field G(Z).
   PetscCall(KSPCreate(comm_, mass_ksp_.out()));
@@ -330,9 +374,20 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
     T_setup_ = T;
+    ++setups_;
   }
   PetscCall(VecCopy(U, U1));
   PetscCall(VecCopy(dU, dU1));
+  const PetscInt nc = model_->contacts.Size();
+  if (record_) {
+    trU_.resize(N_, steps + 1), trdU_.resize(N_, steps + 1), trV_.resize(3 * nc, steps + 1), trR_.resize(3 * nc, steps);
+    PetscCall(Full(U1, trU_.col(0)));
+    PetscCall(Full(dU1, trdU_.col(0)));
+    if (nc) {
+      PetscCall(ti_->Local(dU1, vloc_));
+      trV_.col(0) = vloc_;
+    }
+  }
   if (transitions) {
     transitions->clear();
     ti_->Contact().Status(r, prev);
@@ -341,6 +396,15 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
     PetscCall(ti_->Step(U1, dU1, r, &info));
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
+    if (record_) {
+      PetscCall(Full(U1, trU_.col(i + 1)));
+      PetscCall(Full(dU1, trdU_.col(i + 1)));
+      if (nc) {
+        trR_.col(i) = r;
+        PetscCall(ti_->Local(dU1, vloc_));
+        trV_.col(i + 1) = vloc_;
+      }
+    }
     if (transitions) {
       ti_->Contact().Status(r, cur);
       for (size_t c = 0; c < cur.size(); ++c)
@@ -374,10 +438,16 @@ PetscErrorCode Shooting::SetAnchor(Vec x)
   PetscReal       T;
   Eigen::VectorXd r;
   PetscFunctionBeginUser;
+  PetscBool same = PETSC_FALSE;
   PetscCall(Unpack(x, ZaU_, ZadU_, &T));
-  PetscCall(Flow(ZaU_, ZadU_, T, U1_, dU1_, &r));
-  PetscCall(VectorField(U1_, dU1_, r, GaU_, GadU_));
+  // The anchor is the iterate whose residual SNES has just computed: reuse that flow.
+  if (last_valid_) PetscCall(VecEqual(x, lastx_, &same));
+  if (!same) {
+    PetscCall(Flow(ZaU_, ZadU_, T, U1_, dU1_, &r));
+    PetscCall(VectorField(U1_, dU1_, r, GaU_, GadU_));
+  } else PetscCall(VectorField(lastU1_, lastdU1_, last_r_, GaU_, GadU_));
   anchored_ = true;
+  PetscCall(VecSet(jx_, PETSC_INFINITY)); // a dense Jacobian holds the old anchor's row
   PetscFunctionReturn(0);
 }
 
@@ -393,7 +463,21 @@ PetscErrorCode Shooting::Residual(Vec x, Vec f)
     PetscCall(VecSet(f, PETSC_INFINITY));
     PetscFunctionReturn(0);
   }
-  PetscCall(Flow(U_, dU_, T, U1_, dU1_));
+  // With exact products the Jacobian integrates the tangent along this very flow: keep it.
+  record_ = ExactJacobian();
+  PetscErrorCode ierr = Flow(U_, dU_, T, U1_, dU1_, &last_r_);
+  record_ = false;
+  PetscCall(ierr);
+  if (ExactJacobian()) {
+    PetscCall(VecCopy(x, trx_));
+    trT_       = T;
+    tr_valid_  = true;
+    trC_ready_ = false;
+  }
+  PetscCall(VecCopy(x, lastx_));
+  PetscCall(VecCopy(U1_, lastU1_));
+  PetscCall(VecCopy(dU1_, lastdU1_));
+  last_valid_ = true;
   PetscCall(VecAXPY(U1_, -1.0, U_));
   PetscCall(VecAXPY(dU1_, -1.0, dU_));
   if (anchored_) {
@@ -412,6 +496,27 @@ PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
   PetscReal nx, nv;
   PetscBool same = PETSC_FALSE;
   PetscFunctionBeginUser;
+  if (ExactJacobian()) {
+    Eigen::VectorXd z, out;
+    if (jdense_) PetscCall(VecEqual(x, jx_, &same));
+    PetscCall(ToNatural(v, z));
+    const PetscInt n2 = 2 * N_;
+    if (same) out = Jd_ * z;
+    else {
+      Eigen::MatrixXd    dZ1;
+      Eigen::RowVectorXd dT(1);
+      dT[0] = z[n2];
+      PetscCall(TangentFlow(x, z.head(n2), dT, dZ1));
+      Eigen::VectorXd g(n2);
+      PetscCall(Full(GaU_, g.head(N_)));
+      PetscCall(Full(GadU_, g.tail(N_)));
+      out.resize(n2 + 1);
+      out.head(n2) = dZ1.col(0) - z.head(n2);
+      out[n2]      = anchored_ ? g.dot(z.head(n2)) : 0.0;
+    }
+    PetscCall(FromNatural(out, y));
+    PetscFunctionReturn(0);
+  }
   PetscCall(VecEqual(x, xbase_, &same));
   if (!same) {
     PetscCall(VecCopy(x, xbase_));
@@ -428,6 +533,122 @@ PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
   PetscCall(Residual(xp_, y));
   PetscCall(VecAXPY(y, -1.0, fbase_));
   PetscCall(VecScale(y, 1.0 / eps));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Full(Vec v, Eigen::Ref<Eigen::VectorXd> out)
+{
+  PetscFunctionBeginUser;
+  if (size_ > 1) {
+    PetscCall(gather_(v, out));
+    PetscFunctionReturn(0);
+  }
+  const PetscScalar *a;
+  PetscCall(VecGetArrayRead(v, &a));
+  for (PetscInt i = 0; i < N_; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(v, &a));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::ToNatural(Vec x, Eigen::VectorXd &z)
+{
+  PetscReal T;
+  PetscFunctionBeginUser;
+  z.resize(2 * N_ + 1);
+  PetscCall(Unpack(x, wU_, wdU_, &T));
+  PetscCall(Full(wU_, z.head(N_)));
+  PetscCall(Full(wdU_, z.segment(N_, N_)));
+  z[2 * N_] = T;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::FromNatural(const Eigen::VectorXd &z, Vec x)
+{
+  PetscInt     lo, hi, nl;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(model_->F, &lo, &hi));
+  PetscCall(VecGetLocalSize(x, &nl));
+  PetscCall(VecGetArray(x, &a));
+  for (PetscInt i = 0; i < nloc_; ++i) a[i] = z[lo + i], a[nloc_ + i] = z[N_ + lo + i];
+  if (nl > 2 * nloc_) a[2 * nloc_] = z[2 * N_];
+  PetscCall(VecRestoreArray(x, &a));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::EnsureTrajectory(Vec x)
+{
+  PetscBool same = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  if (tr_valid_) PetscCall(VecEqual(x, trx_, &same));
+  if (!same) {
+    PetscCall(Residual(x, fp_));
+    PetscCheck(tr_valid_, comm_, PETSC_ERR_PLIB, "shooting: no flow at this iterate (period outside (T0/2, 2 T0))");
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT, Eigen::MatrixXd &dZ1)
+{
+  const PetscInt N = N_;
+  PetscFunctionBeginUser;
+  PetscCheck(ExactJacobian(), comm_, PETSC_ERR_SUP,
+             "shooting: exact tangents need the dense theta back end (N = %" PetscInt_FMT " > -theta_dense_max) and -shoot_exact_jacobian",
+             N);
+  PetscCall(EnsureTrajectory(x));
+  if (T_setup_ != trT_) { // a test or a difference product moved the step size since
+    PetscCall(ti_->SetUp(*model_, trT_ / steps));
+    T_setup_ = trT_;
+    ++setups_;
+  }
+  const PetscInt nc = model_->contacts.Size();
+  if (!trC_ready_) {
+    // The h-sources depend on the base flow only: once per stored trajectory.
+    trC_.resize(N, steps);
+    for (PetscInt i = 0; i < steps; ++i) {
+      sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sve_ = trU_.col(i);
+      if (nc) sr_ = trR_.col(i);
+      else sr_.resize(0);
+      PetscCall(ti_->StepTangentSource(sve_, sdUi_, sdUn_, sr_, sc_));
+      trC_.col(i) = sc_;
+    }
+    trC_ready_ = true;
+  }
+  Eigen::MatrixXd    dU = dZ0.topRows(N), ddU = dZ0.bottomRows(N);
+  Eigen::RowVectorXd dh = dT / (PetscReal)steps;
+  ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
+  for (PetscInt i = 0; i < steps; ++i) {
+    sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sc_ = trC_.col(i);
+    if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
+    else sr_.resize(0), svs_.resize(0), sve_.resize(0);
+    PetscCall(ti_->StepTangent(sr_, sve_, sd, dh, dU, ddU));
+  }
+  dZ1.resize(2 * N, dZ0.cols());
+  dZ1.topRows(N)    = dU;
+  dZ1.bottomRows(N) = ddU;
+  ++evaluations_, ++tangents_;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::BuildDenseJacobian(Vec x)
+{
+  const PetscInt n2 = 2 * N_;
+  PetscFunctionBeginUser;
+  Eigen::MatrixXd    E = Eigen::MatrixXd::Identity(n2, n2 + 1), D;
+  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(n2 + 1);
+  dT[n2] = 1.0;
+  PetscCall(TangentFlow(x, E, dT, D));
+  Jd_.setZero(n2 + 1, n2 + 1);
+  Jd_.topRows(n2) = D;
+  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
+  if (anchored_) {
+    Eigen::VectorXd g(n2);
+    PetscCall(Full(GaU_, g.head(N_)));
+    PetscCall(Full(GadU_, g.tail(N_)));
+    Jd_.row(n2).head(n2) = g.transpose();
+  }
+  jlu_.compute(Jd_);
+  PetscCall(VecCopy(x, jx_));
   PetscFunctionReturn(0);
 }
 
@@ -511,6 +732,7 @@ PetscErrorCode Shooting::ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T)
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
     T_setup_ = T;
+    ++setups_;
   }
   if (!shiftU_) {
     PetscCall(VecDuplicate(U0, shiftU_.out()));
@@ -658,6 +880,7 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
     T_setup_ = T;
+    ++setups_;
   }
   VecScatter sc;
   Vec        z;
@@ -714,7 +937,33 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
-  evaluations_ = 0;
+  evaluations_ = tangents_ = setups_ = 0;
+  // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
+  PetscCall(ti_->SetUp(*model_, T0 / steps));
+  T_setup_ = T0;
+  ++setups_;
+  jdense_ = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
+  {
+    KSP ksp;
+    PC  pc;
+    PetscCall(SNESGetKSP(snes_, &ksp));
+    PetscCall(KSPGetPC(ksp, &pc));
+    if (jdense_) {
+      // Exact dense Jacobian, factorised: its LU preconditions GMRES, which then stops at once.
+      PetscCall(PCSetType(pc, PCSHELL));
+      PetscCall(PCShellSetContext(pc, this));
+      PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
+      PetscCall(PCShellSetName(pc, "LU of the exact bordered Jacobian"));
+      PetscCall(KSPSetTolerances(ksp, 1e-12, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
+    } else {
+      PetscBool shell;
+      PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
+      if (shell) PetscCall(PCSetType(pc, PCNONE));
+      if (!ExactJacobian() && exact_jacobian)
+        PetscCall(PetscInfo(nullptr, "shooting: N = %" PetscInt_FMT " > -theta_dense_max: finite-difference products\n", N_));
+    }
+  }
+  PetscCall(VecSet(jx_, PETSC_INFINITY));
   anchored_    = false;
   hist_res_.clear();
   hist_T_.clear();
@@ -739,7 +988,17 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   if (!res.converged && fail_reason_.empty()) {
     switch (reason) {
     case SNES_DIVERGED_LINE_SEARCH: fail_reason_ = "line search failure"; break;
-    case SNES_DIVERGED_LINEAR_SOLVE: fail_reason_ = "Krylov failure on the bordered system (-shoot_ksp_*)"; break;
+    case SNES_DIVERGED_LINEAR_SOLVE: {
+      KSP                ksp;
+      KSPConvergedReason kr;
+      PetscInt           kit;
+      PetscCall(SNESGetKSP(snes_, &ksp));
+      PetscCall(KSPGetConvergedReason(ksp, &kr));
+      PetscCall(KSPGetIterationNumber(ksp, &kit));
+      fail_reason_ = std::string("Krylov failure on the bordered system: ") + KSPConvergedReasons[kr] + " after " + std::to_string(kit) +
+                     " iterations (-shoot_ksp_max_it, -shoot_ksp_rtol, -shoot_ksp_gmres_restart)";
+      break;
+    }
     case SNES_DIVERGED_FUNCTION_DOMAIN: fail_reason_ = "the period left (T0/2, 2 T0)"; break;
     default: fail_reason_ = SNESConvergedReasons[reason]; break;
     }
@@ -834,7 +1093,9 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     }
     if (!res.floquet_at_z0.empty()) classify(res.floquet_at_z0, res.trivial_at_z0, res.largest_at_z0);
   }
-  res.flow_evaluations = evaluations_;
+  res.flow_evaluations    = evaluations_;
+  res.tangent_evaluations = tangents_;
+  res.setups              = setups_;
   PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)",
              res.reason.c_str(), (double)res.residual, (double)res.period);
   PetscFunctionReturn(0);
@@ -848,8 +1109,10 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   if (!ascii) PetscFunctionReturn(0);
   PetscCall(PetscViewerASCIIPrintf(viewer,
                                    "shooting: %s in %" PetscInt_FMT " Newton iteration(s) (%" PetscInt_FMT
-                                   " corrections applied), %" PetscInt_FMT " period integrations\n",
-                                   res.reason.c_str(), res.iterations, res.corrections, res.flow_evaluations));
+                                   " corrections applied), %" PetscInt_FMT " period integrations (%" PetscInt_FMT
+                                   " of them linear tangent integrations), %" PetscInt_FMT " step set-ups\n",
+                                   res.reason.c_str(), res.iterations, res.corrections, res.flow_evaluations, res.tangent_evaluations,
+                                   res.setups));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));

@@ -53,6 +53,19 @@ public:
   // (S4)-(S9) at the converged reactions r = r^{i+1} with every status held fixed; v_end: local
   // velocities H^T dU^{i+1} (for the slip directions). N x k columns, k arbitrary.
   PetscErrorCode StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
+  // The same tangent with a change dh of the step size per column as well (the shooting period
+  // T = N_s h), along a stored step (U^i, dU^i) -> dU^{i+1}: the derivative of the discrete map
+  // in h at fixed statuses, so that d Z / d T of shooting is exact without another factorisation.
+  // c: StepTangentSource of that step; v_start: H^T dU^i.
+  struct StepData {
+    const Eigen::VectorXd *dUi, *dUn, *c, *v_start;
+  };
+  PetscErrorCode StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData &step, const Eigen::RowVectorXd &dh,
+                             Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
+  // c = d dU^{i+1} / dh at fixed (U^i, dU^i) and r: A^-1 [B' dU^i - K U^i + F - A' dU^{i+1}] + Y r, with
+  // A' = theta C + 2 h theta^2 K and B' = -(1 - theta) C - 2 h theta (1 - theta) K. Dense back end.
+  PetscErrorCode StepTangentSource(const Eigen::VectorXd &Ui, const Eigen::VectorXd &dUi, const Eigen::VectorXd &dUn,
+                                   const Eigen::VectorXd &r, Eigen::VectorXd &c);
   // Energies and the work done over a step from (U0, dU0) to (U1, dU1) with reaction r:
   // damping  h ub^T C ub, reactions h ub^T H r, load h ub^T F, with ub = (U1 - U0)/h.
   PetscErrorCode Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic);
@@ -98,6 +111,12 @@ private:
   Eigen::VectorXd full_U_, full_dU_;
   Eigen::MatrixXd tvf_, tw_, tg_, trhs_, tA_, tdr_; // StepTangent work arrays
   std::vector<int> tstatus_;
+  std::vector<Eigen::Index> tclosed_;               // local rows of the closed points
+  Eigen::MatrixXd tAc_, trc_;
+  Eigen::VectorXd tq_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
+  PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,
+                                 Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
 
   // sparse back end
   KSPH       ksp_;

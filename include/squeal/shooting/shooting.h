@@ -24,6 +24,7 @@
 // an accuracy check.
 #pragma once
 
+#include "squeal/core/gather.h"
 #include "squeal/integration/theta.h"
 #include "squeal/io/h5.h"
 #include "squeal/stability/equilibrium.h"
@@ -43,6 +44,9 @@ struct ShootingResult {
   // iterations: index k of the iterate at which (6.3) holds, ||H(x_k)|| / ||Z0|| < eps1 and the
   // correction computed at x_k has |dT| / T < eps2; that correction is applied (corrections = k + 1).
   PetscInt                             iterations = 0, corrections = 0, flow_evaluations = 0;
+  // Of flow_evaluations: linear integrations of the step tangents (Jacobian products and exact
+  // monodromies); set-ups of the step matrices (one per new period).
+  PetscInt                             tangent_evaluations = 0, setups = 0;
   PetscReal                            period = 0, residual = 0; // ||H|| / ||Z0|| at the returned iterate
   std::vector<PetscReal>               residual_history, period_history;
   std::vector<PetscReal>               Z0;                 // (U, dU) on rank 0
@@ -82,7 +86,13 @@ public:
   PetscErrorCode Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end = nullptr,
                       std::vector<PetscInt> *transitions = nullptr);
   PetscErrorCode Residual(Vec x, Vec f);
-  PetscErrorCode JacobianProduct(Vec x, Vec v, Vec y); // J(x) v, matrix-free
+  PetscErrorCode JacobianProduct(Vec x, Vec v, Vec y); // J(x) v: exact tangent (dense back end) or finite difference
+  // Exact tangent of the period map along the flow from x (stored once per x, reused): columns
+  // (dZ0; dT) -> dZ(T) = d Z / d Z0 dZ0 + d Z / d T dT, one linear integration for all k columns,
+  // without a new factorisation (the derivative in h is exact, ThetaIntegrator::StepTangent).
+  // Vectors in the natural order (U, dU) of the whole model, on every rank. Dense back end.
+  PetscErrorCode TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT, Eigen::MatrixXd &dZ1);
+  bool           ExactJacobian() const { return exact_jacobian && ti_ && ti_->Dense(); }
   PetscErrorCode CreateState(Vec *x) const;
   PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
@@ -98,6 +108,11 @@ public:
   PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
   PetscBool floquet = PETSC_TRUE, floquet_exact = PETSC_TRUE;
+  // -shoot_exact_jacobian: tangent products (else finite differences); -shoot_jacobian_dense_max:
+  // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
+  // factorised (the Krylov solve then converges in one iteration); above it GMRES on the products.
+  PetscBool exact_jacobian = PETSC_TRUE;
+  PetscInt  jacobian_dense_max = 100;
 
 private:
   friend struct ShootingCallbacks;
@@ -113,6 +128,28 @@ private:
   std::vector<PetscReal> phase_s_, phase_w_;
   VecH           shiftU_, shiftdU_;
   PetscErrorCode Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
+  // The flow from the last residual evaluation (x, Z(x), last reaction): the anchor reuses it.
+  VecH            lastx_, lastU1_, lastdU1_;
+  Eigen::VectorXd last_r_;
+  bool            last_valid_ = false;
+  // Trajectory of the flow from trx_ (states, reactions, local velocities, h-sources), natural order.
+  bool            record_ = false, tr_valid_ = false, trC_ready_ = false;
+  VecH            trx_;
+  PetscReal       trT_ = 0;
+  Eigen::MatrixXd trU_, trdU_, trR_, trV_, trC_;
+  Eigen::VectorXd sdUi_, sdUn_, sc_, svs_, sve_, sr_, vloc_;
+  PetscErrorCode  EnsureTrajectory(Vec x);
+  PetscErrorCode  Full(Vec v, Eigen::Ref<Eigen::VectorXd> out);
+  PetscErrorCode  ToNatural(Vec x, Eigen::VectorXd &z);       // packed (Z, T) -> (U, dU, T), every rank
+  PetscErrorCode  FromNatural(const Eigen::VectorXd &z, Vec x);
+  PetscErrorCode  BuildDenseJacobian(Vec x);
+  Eigen::MatrixXd Jd_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> jlu_;
+  bool            jdense_ = false; // this solve uses the dense bordered Jacobian
+  VecH            jx_;              // where Jd_ was built
+  AllGather       gather_;
+  PetscMPIInt     size_ = 1;
+  PetscInt        tangents_ = 0, setups_ = 0, N_ = 0;
 
   MPI_Comm                 comm_;
   const Model             *model_ = nullptr;
