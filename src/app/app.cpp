@@ -1,5 +1,6 @@
 #include "squeal/app/app.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
@@ -83,6 +84,22 @@ PetscErrorCode WriteModelInfo(const Model &model, io::H5Writer &out)
   PetscFunctionReturn(0);
 }
 
+// After each analysis: what is complete goes to disk; on SIGINT/SIGTERM the run stops here with
+// the file closed (status "interrupted ...") and a non-zero exit.
+PetscErrorCode Checkpoint(MPI_Comm comm, io::H5Writer &out, const char *done)
+{
+  bool stop;
+  PetscFunctionBeginUser;
+  PetscCall(out.Flush());
+  PetscCall(InterruptRequested(comm, &stop));
+  if (!stop) PetscFunctionReturn(0);
+  const std::string status = std::string("interrupted (") + InterruptSignalName() + ") after " + done;
+  PetscCall(out.SetStatus(status.c_str()));
+  PetscCall(out.Close());
+  SETERRQ(comm, PETSC_ERR_SIG, "interrupted by %s after %s; results so far written to %s", InterruptSignalName(), done,
+          out.Path().c_str());
+}
+
 } // namespace
 
 PetscErrorCode RunApp(int argc, char **argv)
@@ -151,6 +168,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   }
   io::H5Writer out;
   PetscCall(out.Open(comm, output));
+  out.KeepOnError("failed: the run stopped with an error; the groups written before it are complete");
   PetscCall(WriteModelInfo(model, out));
 
   SlidingEquilibrium eq;
@@ -169,6 +187,7 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(stab.View(res, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(stab.ViewFromOptions(res));
     PetscCall(WriteStability(res, out));
+    PetscCall(Checkpoint(comm, out, "the stability analysis"));
     if (res.unstable.empty())
       PetscCall(PetscPrintf(comm, "sliding equilibrium is stable: no self-excited vibration expected\n"));
     for (PetscInt i : res.unstable) {
@@ -184,6 +203,7 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(PetscLogStagePop());
     PetscCall(sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(sweep.Write(sr, out));
+    PetscCall(Checkpoint(comm, out, "the sweep"));
   }
   if (req.energy) {
     EnergyEstimate est;
@@ -192,6 +212,7 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(PetscLogStagePop());
     PetscCall(energy.View(est, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(energy.Write(est, out));
+    PetscCall(Checkpoint(comm, out, "the energy estimate"));
     // Several unstable modes: estimate the others too (one line each); shooting starts from the
     // chosen one (-energy_mode, default the most unstable).
     if (res.unstable.size() > 1) {
@@ -229,6 +250,7 @@ PetscErrorCode RunApp(int argc, char **argv)
       PetscCall(shooting.Write(sres, out)); // also the best iterate of a failed run
       PetscCall(serr);
       PetscCall(shooting.View(sres, PETSC_VIEWER_STDOUT_(comm)));
+      PetscCall(Checkpoint(comm, out, "shooting"));
     }
   }
   if (req.transient) {
@@ -241,7 +263,9 @@ PetscErrorCode RunApp(int argc, char **argv)
     PetscCall(terr);
     PetscCall(theta.View(PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(Checkpoint(comm, out, tr.complete ? "the transient" : "the transient step in hand (the steps so far are written)"));
   }
+  PetscCall(out.SetStatus("complete"));
   PetscCall(out.Close());
   PetscCall(PetscPrintf(comm, "results written to %s\n", output));
   PetscCall(CheckUnusedOptions(comm, false));

@@ -1,5 +1,6 @@
 #include "squeal/integration/transient.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 
 #include <algorithm>
@@ -213,6 +214,9 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
         if (i == nsteps) std::fprintf(stderr, "\n");
       }
     }
+    bool stop; // SIGINT/SIGTERM: leave after this step; the records so far are written
+    PetscCall(InterruptRequested(comm_, &stop));
+    if (stop) break;
   }
   PetscCall(VecDestroy(&z));
   PetscCall(VecScatterDestroy(&sc));

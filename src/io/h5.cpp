@@ -1,166 +1,310 @@
 #include "squeal/io/h5.h"
 
+#include <cerrno>
+#include <cstdio>
 #include <cstring>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace squeal::io {
 
 namespace {
-// HDF5 returns negative ids/statuses on failure and prints its own stack; turn that into a
-// PETSc error naming the operation.
-#define SquealH5Call(expr, what)                                                                       \
-  do {                                                                                                 \
-    if ((expr) < 0) SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "HDF5 failed to %s in '%s'", what, path_.c_str()); \
-  } while (0)
+
+// HDF5 prints its own error stack (15 lines for a missing directory); squeal reports one line.
+void QuietHDF5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+
+std::string DirName(const std::string &p)
+{
+  const size_t s = p.find_last_of('/');
+  if (s == std::string::npos) return ".";
+  return s == 0 ? "/" : p.substr(0, s);
+}
+
+std::string BaseName(const std::string &p)
+{
+  const size_t s = p.find_last_of('/');
+  return s == std::string::npos ? p : p.substr(s + 1);
+}
+
 } // namespace
 
-H5Writer::~H5Writer() { PetscCallVoid(Close()); }
+H5Writer::~H5Writer()
+{
+  if (open_ && !keep_status_.empty()) {
+    PetscCallVoid(SetStatus(keep_status_.c_str()));
+    PetscCallVoid(Close());
+    PetscCallVoid(PetscFPrintf(comm_, PETSC_STDERR, "squeal: results computed before the error written to %s\n", path_.c_str()));
+  }
+  PetscCallVoid(Close());
+}
+
+void H5Writer::Fail(const char *what)
+{
+  if (err_.empty()) err_ = std::string("HDF5 failed to ") + what + " in results file '" + path_ + "' (temporary '" + tmp_ + "')";
+}
+
+PetscErrorCode H5Writer::Sync()
+{
+  PetscMPIInt bad = err_.empty() ? 0 : 1;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Bcast(&bad, 1, MPI_INT, 0, comm_));
+  if (bad) {
+    const std::string msg = err_.empty() ? std::string("results file error on rank 0") : err_;
+    err_.clear();
+    SETERRQ(comm_, PETSC_ERR_FILE_WRITE, "%s", msg.c_str());
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode H5Writer::CheckOpen()
+{
+  PetscFunctionBeginUser;
+  PetscCheck(open_, comm_ == MPI_COMM_NULL ? PETSC_COMM_SELF : comm_, PETSC_ERR_ORDER, "results file is not open");
+  PetscFunctionReturn(0);
+}
+
+bool H5Writer::IsResultsFile(const char *path)
+{
+  QuietHDF5();
+  if (H5Fis_hdf5(path) <= 0) return false;
+  const hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return false;
+  bool ours = false;
+  if (H5Aexists(f, "creator") > 0) {
+    const hid_t a = H5Aopen(f, "creator", H5P_DEFAULT);
+    const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
+    char        buf[64] = {0};
+    if (t >= 0 && H5Tget_class(t) == H5T_STRING && H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
+      ours = std::strncmp(buf, "squeal", 6) == 0;
+    if (t >= 0) H5Tclose(t);
+    if (a >= 0) H5Aclose(a);
+  } else {
+    ours = H5Lexists(f, "/model", H5P_DEFAULT) > 0; // written before the creator attribute existed
+  }
+  H5Fclose(f);
+  return ours;
+}
 
 PetscErrorCode H5Writer::Open(MPI_Comm comm, const char *path)
 {
   PetscFunctionBeginUser;
   PetscCall(Close());
   comm_ = comm;
-  path_ = path;
-  PetscCall(PetscViewerHDF5Open(comm, path, FILE_MODE_WRITE, viewer_.out()));
-  PetscCall(PetscViewerHDF5GetFileId(viewer_, &file_));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank_));
+  path_ = path ? path : "";
+  tmp_  = DirName(path_) + "/." + BaseName(path_) + ".part-" + std::to_string((long long)getpid());
+  err_.clear();
+  PetscCheck(!path_.empty() && path_.back() != '/', comm, PETSC_ERR_USER_INPUT, "-output '%s': expected a file name", path_.c_str());
+  if (rank_ == 0) {
+    QuietHDF5();
+    struct stat st;
+    if (stat(path_.c_str(), &st) == 0) {
+      if (S_ISDIR(st.st_mode)) err_ = "-output '" + path_ + "' is a directory: expected a results file name (.h5)";
+      else if (!IsResultsFile(path_.c_str()))
+        err_ = "refusing to overwrite '" + path_ + "': it exists and is not a squeal results file; choose another -output (.h5)";
+    }
+    if (err_.empty()) {
+      // open(2) first: it says why (no such directory, permission), HDF5 does not.
+      const int fd = ::open(tmp_.c_str(), O_CREAT | O_EXCL | O_WRONLY, 0644);
+      if (fd < 0) err_ = "cannot write results file '" + path_ + "': " + std::strerror(errno) + " (-output)";
+      else ::close(fd);
+    }
+    if (err_.empty()) {
+      file_ = H5Fcreate(tmp_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+      if (file_ < 0) {
+        Fail("create the file");
+        std::remove(tmp_.c_str());
+      }
+    }
+  }
+  {
+    PetscMPIInt bad = err_.empty() ? 0 : 1;
+    PetscCallMPI(MPI_Bcast(&bad, 1, MPI_INT, 0, comm_));
+    if (bad) {
+      const std::string msg = err_;
+      err_.clear();
+      SETERRQ(comm, PETSC_ERR_FILE_OPEN, "%s", msg.c_str());
+    }
+  }
+  open_ = true;
+  PetscCall(WriteAttribute("/", "creator", "squeal results file (see README, Results file)"));
+  PetscCall(SetStatus("running"));
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode H5Writer::Close()
 {
   PetscFunctionBeginUser;
-  viewer_.reset();
-  file_ = -1;
+  if (!open_) PetscFunctionReturn(0);
+  open_ = false;
+  if (rank_ == 0) {
+    if (H5Fclose(file_) < 0) Fail("close the file");
+    file_ = -1;
+    if (err_.empty() && std::rename(tmp_.c_str(), path_.c_str()) != 0)
+      err_ = "cannot rename '" + tmp_ + "' to '" + path_ + "': " + std::strerror(errno);
+  }
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode H5Writer::EnsureGroup(const std::string &path, hid_t *group)
+PetscErrorCode H5Writer::Flush()
 {
   PetscFunctionBeginUser;
-  std::string sofar;
-  size_t      pos = 1;
-  while (pos <= path.size()) {
+  PetscCall(CheckOpen());
+  if (rank_ == 0 && err_.empty() && H5Fflush(file_, H5F_SCOPE_LOCAL) < 0) Fail("flush");
+  PetscCall(Sync());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode H5Writer::SetStatus(const char *status)
+{
+  PetscFunctionBeginUser;
+  PetscCall(WriteAttribute("/", "status", status));
+  PetscFunctionReturn(0);
+}
+
+void H5Writer::EnsureGroup(const std::string &path)
+{
+  size_t pos = 1;
+  while (err_.empty() && pos <= path.size()) {
     size_t next = path.find('/', pos);
     if (next == std::string::npos) next = path.size();
-    sofar = path.substr(0, next);
+    const std::string sofar = path.substr(0, next);
     if (!sofar.empty() && sofar != "/") {
       const htri_t exists = H5Lexists(file_, sofar.c_str(), H5P_DEFAULT);
-      SquealH5Call(exists, "look up a group");
-      if (!exists) {
+      if (exists < 0) Fail("look up a group");
+      else if (!exists) {
         const hid_t g = H5Gcreate2(file_, sofar.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-        SquealH5Call(g, "create a group");
-        SquealH5Call(H5Gclose(g), "close a group");
+        if (g < 0 || H5Gclose(g) < 0) Fail(("create group " + sofar).c_str());
       }
     }
     pos = next + 1;
   }
-  if (group) {
-    *group = H5Oopen(file_, path.empty() ? "/" : path.c_str(), H5P_DEFAULT);
-    SquealH5Call(*group, "open an object");
+}
+
+void H5Writer::WriteTyped(const char *path, const std::vector<hsize_t> &dims, hid_t type, const void *data)
+{
+  const std::string p(path);
+  EnsureGroup(p.substr(0, p.find_last_of('/')));
+  if (!err_.empty()) return;
+  hsize_t total = 1;
+  for (hsize_t d : dims) total *= d;
+  const hid_t space = dims.empty() ? H5Screate(H5S_SCALAR) : H5Screate_simple((int)dims.size(), dims.data(), nullptr);
+  if (space < 0) return Fail("create a dataspace");
+  const hid_t dset = H5Dcreate2(file_, path, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (dset < 0) Fail(("create dataset " + p).c_str());
+  else {
+    if (total > 0 && H5Dwrite(dset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) Fail(("write dataset " + p).c_str());
+    H5Dclose(dset);
   }
-  PetscFunctionReturn(0);
+  H5Sclose(space);
 }
 
 PetscErrorCode H5Writer::WriteVec(const char *group, Vec v)
 {
+  VecScatter         sc;
+  Vec                all;
+  const char        *name;
+  const PetscScalar *a;
+  PetscInt           n;
   PetscFunctionBeginUser;
-  PetscCheck(IsOpen(), comm_, PETSC_ERR_ORDER, "results file is not open");
-  PetscCall(EnsureGroup(group, nullptr));
-  PetscCall(PetscViewerHDF5PushGroup(viewer_, group));
-  PetscCall(VecView(v, viewer_));
-  PetscCall(PetscViewerHDF5PopGroup(viewer_));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode H5Writer::WriteTyped(const char *path, const std::vector<hsize_t> &dims, hid_t type, const void *data)
-{
-  PetscMPIInt rank;
-  PetscFunctionBeginUser;
-  PetscCheck(IsOpen(), comm_, PETSC_ERR_ORDER, "results file is not open");
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
-  const std::string p(path);
-  PetscCall(EnsureGroup(p.substr(0, p.find_last_of('/')), nullptr));
-  hsize_t total = 1;
-  for (hsize_t d : dims) total *= d;
-  const hid_t space = dims.empty() ? H5Screate(H5S_SCALAR) : H5Screate_simple((int)dims.size(), dims.data(), nullptr);
-  SquealH5Call(space, "create a dataspace");
-  const hid_t dset = H5Dcreate2(file_, path, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  SquealH5Call(dset, "create a dataset");
-  if (rank == 0 && total > 0) SquealH5Call(H5Dwrite(dset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write a dataset");
-  SquealH5Call(H5Dclose(dset), "close a dataset");
-  SquealH5Call(H5Sclose(space), "close a dataspace");
+  PetscCall(CheckOpen());
+  PetscCall(PetscObjectGetName((PetscObject)v, &name));
+  PetscCall(VecScatterCreateToZero(v, &sc, &all));
+  PetscCall(VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetLocalSize(all, &n));
+  if (rank_ == 0) {
+    std::vector<PetscReal> x(n);
+    PetscCall(VecGetArrayRead(all, &a));
+    for (PetscInt i = 0; i < n; ++i) x[i] = PetscRealPart(a[i]);
+    PetscCall(VecRestoreArrayRead(all, &a));
+    WriteTyped((std::string(group) + "/" + name).c_str(), {(hsize_t)n}, H5T_NATIVE_DOUBLE, x.data());
+  }
+  PetscCall(VecScatterDestroy(&sc));
+  PetscCall(VecDestroy(&all));
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode H5Writer::WriteArray(const char *path, const std::vector<hsize_t> &dims, const PetscReal *data)
 {
   PetscFunctionBeginUser;
-  PetscCall(WriteTyped(path, dims, H5T_NATIVE_DOUBLE, data));
+  PetscCall(CheckOpen());
+  if (rank_ == 0) WriteTyped(path, dims, H5T_NATIVE_DOUBLE, data);
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode H5Writer::WriteIntArray(const char *path, const std::vector<hsize_t> &dims, const PetscInt *data)
 {
   PetscFunctionBeginUser;
-  PetscCall(WriteTyped(path, dims, sizeof(PetscInt) == 8 ? H5T_NATIVE_INT64 : H5T_NATIVE_INT32, data));
+  PetscCall(CheckOpen());
+  if (rank_ == 0) WriteTyped(path, dims, sizeof(PetscInt) == 8 ? H5T_NATIVE_INT64 : H5T_NATIVE_INT32, data);
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode H5Writer::WriteAttr(const char *object, const char *name, hid_t type, const std::vector<hsize_t> &dims,
-                                   const void *value)
+void H5Writer::WriteAttr(const char *object, const char *name, hid_t type, const std::vector<hsize_t> &dims,
+                         const void *value)
 {
   hid_t obj;
-  PetscFunctionBeginUser;
-  PetscCheck(IsOpen(), comm_, PETSC_ERR_ORDER, "results file is not open");
-  const htri_t exists = H5Lexists(file_, object, H5P_DEFAULT);
-  SquealH5Call(exists, "look up an object");
-  if (exists > 0 || std::strcmp(object, "/") == 0) {
-    obj = H5Oopen(file_, object, H5P_DEFAULT);
-    SquealH5Call(obj, "open an object");
-  } else {
-    PetscCall(EnsureGroup(object, &obj));
-  }
-  if (H5Aexists(obj, name) > 0) SquealH5Call(H5Adelete(obj, name), "replace an attribute");
+  if (!err_.empty()) return;
+  const bool   root   = std::strcmp(object, "/") == 0;
+  const htri_t exists = root ? 1 : H5Lexists(file_, object, H5P_DEFAULT);
+  if (exists < 0) return Fail("look up an object");
+  if (!exists) EnsureGroup(object);
+  if (!err_.empty()) return;
+  obj = H5Oopen(file_, object, H5P_DEFAULT);
+  if (obj < 0) return Fail(("open " + std::string(object)).c_str());
+  if (H5Aexists(obj, name) > 0 && H5Adelete(obj, name) < 0) Fail("replace an attribute");
   const hid_t space = dims.empty() ? H5Screate(H5S_SCALAR) : H5Screate_simple((int)dims.size(), dims.data(), nullptr);
-  SquealH5Call(space, "create a dataspace");
-  const hid_t attr = H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
-  SquealH5Call(attr, "create an attribute");
-  SquealH5Call(H5Awrite(attr, type, value), "write an attribute");
-  SquealH5Call(H5Aclose(attr), "close an attribute");
-  SquealH5Call(H5Sclose(space), "close a dataspace");
-  SquealH5Call(H5Oclose(obj), "close an object");
-  PetscFunctionReturn(0);
+  const hid_t attr  = err_.empty() && space >= 0 ? H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT) : -1;
+  if (attr < 0 || H5Awrite(attr, type, value) < 0) Fail(("write attribute " + std::string(object) + ":" + name).c_str());
+  if (attr >= 0) H5Aclose(attr);
+  if (space >= 0) H5Sclose(space);
+  H5Oclose(obj);
 }
 
 PetscErrorCode H5Writer::WriteAttribute(const char *object, const char *name, PetscReal value)
 {
   PetscFunctionBeginUser;
-  PetscCall(WriteAttr(object, name, H5T_NATIVE_DOUBLE, {}, &value));
+  PetscCall(CheckOpen());
+  if (rank_ == 0) WriteAttr(object, name, H5T_NATIVE_DOUBLE, {}, &value);
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode H5Writer::WriteAttribute(const char *object, const char *name, PetscInt value)
 {
   PetscFunctionBeginUser;
-  PetscCall(WriteAttr(object, name, sizeof(PetscInt) == 8 ? H5T_NATIVE_INT64 : H5T_NATIVE_INT32, {}, &value));
+  PetscCall(CheckOpen());
+  if (rank_ == 0) WriteAttr(object, name, sizeof(PetscInt) == 8 ? H5T_NATIVE_INT64 : H5T_NATIVE_INT32, {}, &value);
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode H5Writer::WriteAttribute(const char *object, const char *name, const std::vector<PetscReal> &values)
 {
   PetscFunctionBeginUser;
-  PetscCall(WriteAttr(object, name, H5T_NATIVE_DOUBLE, {(hsize_t)values.size()}, values.data()));
+  PetscCall(CheckOpen());
+  if (rank_ == 0) WriteAttr(object, name, H5T_NATIVE_DOUBLE, {(hsize_t)values.size()}, values.data());
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode H5Writer::WriteAttribute(const char *object, const char *name, const char *value)
 {
   PetscFunctionBeginUser;
-  const hid_t type = H5Tcopy(H5T_C_S1);
-  SquealH5Call(type, "create a string type");
-  SquealH5Call(H5Tset_size(type, std::strlen(value) + 1), "size a string type");
-  PetscCall(WriteAttr(object, name, type, {}, value));
-  SquealH5Call(H5Tclose(type), "close a string type");
+  PetscCall(CheckOpen());
+  if (rank_ == 0) {
+    const hid_t type = H5Tcopy(H5T_C_S1);
+    if (type < 0 || H5Tset_size(type, std::strlen(value) + 1) < 0) Fail("create a string type");
+    else WriteAttr(object, name, type, {}, value);
+    if (type >= 0) H5Tclose(type);
+  }
+  PetscCall(Sync());
   PetscFunctionReturn(0);
 }
 

@@ -1,15 +1,24 @@
 // The results file. One HDF5 file per run, one group per analysis (/equilibrium, /stability,
-// /sweep, ...), opened through PetscViewerHDF5 (parallel HDF5, Open MPI flavour).
+// /sweep, ...); the datasets are listed in the README ("Results file").
 //
-// PETSc objects (distributed Vecs) are written with VecView. Small dense arrays of any rank
-// (eigenvalue tables, sweep grids) and attributes go through the HDF5 C API on the viewer's file
-// id: PetscViewerHDF5 writes only Vec/Mat/IS shapes. Such arrays live on rank 0; every call is
-// collective (metadata operations are collective in parallel HDF5), and only rank 0 writes data.
+// Results are never lost or mixed:
+//  - Open() refuses to replace an existing file that is not a squeal results file (an HDF5 file
+//    whose root carries creator = "squeal...", or an older one with a /model group), and writes
+//    into a temporary file beside the target (".NAME.part-PID"); Close() renames it onto the
+//    target. rename(2) is atomic, so two runs writing the same target leave one complete file
+//    (the last to finish), never a mixture; a reader never sees a half-written file.
+//  - Flush() after each analysis puts what is complete on disk (in the temporary file).
+//  - The root attribute "status" says "complete", "interrupted (SIGINT)" or "failed: ...".
+//
+// Only rank 0 touches the file, through HDF5's default (serial, POSIX) driver: every array squeal
+// writes is small or already gathered to rank 0, and the MPI-IO driver overflows a buffer on
+// paths of ~245 characters or more (file locking). Calls are collective: a failure on rank 0 is
+// raised on every rank, with a one-line message naming the file.
 #pragma once
 
-#include "squeal/core/handle.h"
+#include <petscvec.h>
 
-#include <petscviewerhdf5.h>
+#include <hdf5.h>
 
 #include <string>
 #include <vector>
@@ -20,32 +29,55 @@ class H5Writer {
 public:
   H5Writer() = default;
   ~H5Writer();
-  PetscErrorCode Open(MPI_Comm comm, const char *path);
-  PetscErrorCode Close();
-  bool           IsOpen() const { return (bool)viewer_; }
-  const std::string &Path() const { return path_; }
+  H5Writer(const H5Writer &)            = delete;
+  H5Writer &operator=(const H5Writer &) = delete;
 
-  // VecView into `group` under the Vec's name.
+  // Checks the target (not a directory, not a foreign file, directory writable) and creates the
+  // temporary file. Collective.
+  PetscErrorCode Open(MPI_Comm comm, const char *path);
+  // Closes the temporary file and renames it onto the target. Collective; no-op if not open.
+  PetscErrorCode Close();
+  // Writes buffered data to disk. Collective.
+  PetscErrorCode Flush();
+  bool               IsOpen() const { return open_; }
+  const std::string &Path() const { return path_; }
+  const std::string &TemporaryPath() const { return tmp_; }
+
+  // Root attribute "status" ("complete", "interrupted (SIGINT) ...", "failed: ...").
+  PetscErrorCode SetStatus(const char *status);
+  // If the writer is destroyed while open (an error unwound the caller), set this status, keep
+  // the file (rename it onto the target) and say so on stderr.
+  void KeepOnError(const char *status) { keep_status_ = status; }
+  // The gathered Vec as a 1-D dataset `group`/<name of the Vec>.
   PetscErrorCode WriteVec(const char *group, Vec v);
   // Dense row-major array of doubles (data read on rank 0 only), any rank of dims.
   PetscErrorCode WriteArray(const char *path, const std::vector<hsize_t> &dims, const PetscReal *data);
   PetscErrorCode WriteIntArray(const char *path, const std::vector<hsize_t> &dims, const PetscInt *data);
-  // Attributes on a group or dataset (created as a group if missing). Values must agree on all ranks.
+  // Attributes on a group or dataset (created as a group if missing). Values are taken from rank 0.
   PetscErrorCode WriteAttribute(const char *object, const char *name, PetscReal value);
   PetscErrorCode WriteAttribute(const char *object, const char *name, PetscInt value);
   PetscErrorCode WriteAttribute(const char *object, const char *name, const char *value);
   PetscErrorCode WriteAttribute(const char *object, const char *name, const std::vector<PetscReal> &values);
 
+  // True if `path` is an HDF5 file written by squeal (rank-local, no MPI).
+  static bool IsResultsFile(const char *path);
+
 private:
-  PetscErrorCode EnsureGroup(const std::string &path, hid_t *group);
-  PetscErrorCode WriteTyped(const char *path, const std::vector<hsize_t> &dims, hid_t type, const void *data);
-  PetscErrorCode WriteAttr(const char *object, const char *name, hid_t type, const std::vector<hsize_t> &dims,
+  // Rank-0 parts: record the first failure in err_ instead of raising.
+  void           EnsureGroup(const std::string &path);
+  void           WriteTyped(const char *path, const std::vector<hsize_t> &dims, hid_t type, const void *data);
+  void           WriteAttr(const char *object, const char *name, hid_t type, const std::vector<hsize_t> &dims,
                            const void *value);
+  void           Fail(const char *what);
+  // Raises err_ (from rank 0) on every rank of comm_.
+  PetscErrorCode Sync();
+  PetscErrorCode CheckOpen();
 
   MPI_Comm    comm_ = MPI_COMM_NULL;
-  ViewerH     viewer_;
+  PetscMPIInt rank_ = 0;
+  bool        open_ = false;
   hid_t       file_ = -1;
-  std::string path_;
+  std::string path_, tmp_, err_, keep_status_;
 };
 
 } // namespace squeal::io

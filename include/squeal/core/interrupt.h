@@ -1,0 +1,25 @@
+// Stopping a long run cleanly on SIGINT / SIGTERM.
+//
+// The application installs handlers once; a signal only sets a flag. Long loops (time steps,
+// Newton iterations, sweep points) poll the flag between steps, stop after the step in hand, and
+// the application writes and closes the results file with what was computed, says so, and exits
+// non-zero. A second signal of the same kind, while the first is being honoured, kills the
+// process the default way (for a run stuck inside one step).
+#pragma once
+
+#include <petscsys.h>
+
+namespace squeal {
+
+// Installs the SIGINT and SIGTERM handlers (call once, after PetscInitialize).
+PetscErrorCode InstallInterruptHandlers();
+
+// Collective on comm: true on every rank if a signal reached any rank, so that all ranks leave
+// their loop at the same step. Cheap (no MPI call on one rank).
+PetscErrorCode InterruptRequested(MPI_Comm comm, bool *stop);
+
+// The signal received on this rank (0 if none), and its name ("SIGINT", "SIGTERM").
+int         InterruptSignal();
+const char *InterruptSignalName();
+
+} // namespace squeal

@@ -1,0 +1,165 @@
+#!/usr/bin/python3
+"""Results files are never lost or mixed (issue 9, item 3).
+
+  check_results_io.py interrupt --output F --after REGEX [--signal INT|TERM] [--period T] -- cmd...
+      Starts cmd, waits for a stdout line matching REGEX, sends the signal, and checks: exit code
+      in 1..127, stderr names the signal, F holds the stability table (unstable period T within
+      0.5 %), a partial /transient (complete = 0, >= 2 records, time increasing at a constant
+      step), root status "interrupted ...", no temporary file left.
+  check_results_io.py concurrent --output F -- cmdA -- cmdB
+      Starts both at once (same -output, different mu; A also runs a transient). Both exit 0;
+      F comes whole from one run: /model mu = /equilibrium mu, r_t = mu r_n at every closed point
+      (Coulomb sliding), /transient present exactly when mu is A's; no temporary file left.
+  check_results_io.py refuse --output F -- cmd...
+      F is a text file (a scene); cmd must fail with one "squeal: error:" line naming F and
+      "not a squeal results file", and leave F byte for byte unchanged.
+"""
+import glob
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+
+failures = 0
+
+
+def ok(cond, msg):
+    global failures
+    print(("ok:   " if cond else "FAIL: ") + msg)
+    if not cond:
+        failures += 1
+    return cond
+
+
+def no_temporaries(out):
+    d, b = os.path.split(os.path.abspath(out))
+    left = glob.glob(os.path.join(d, "." + b + ".part-*"))
+    ok(not left, f"no temporary file left beside {b} ({left})")
+
+
+def unstable_period(f):
+    ev = np.asarray(f["stability/eigenvalues"][()])
+    un = np.asarray(f["stability/unstable"][()]).ravel()
+    if un.size == 0:
+        return None
+    return 2 * math.pi / ev[int(un[0]), 1]
+
+
+def status(f):
+    s = f.attrs.get("status", b"")
+    return s.decode() if isinstance(s, bytes) else str(s)
+
+
+def interrupt(args, cmd):
+    out = args["--output"]
+    if os.path.exists(out):
+        os.remove(out)
+    sig = signal.SIGTERM if args.get("--signal", "INT") == "TERM" else signal.SIGINT
+    name = "SIGTERM" if sig == signal.SIGTERM else "SIGINT"
+    print("+ " + " ".join(cmd))
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
+    pat = re.compile(args["--after"])
+    seen = []
+    for line in p.stdout:
+        seen.append(line)
+        if pat.search(line):
+            break
+    ok(p.poll() is None, f"still running when a line matched /{args['--after']}/")
+    t0 = time.time()
+    p.send_signal(sig)
+    rest, err = p.communicate(timeout=120)
+    print("".join(seen) + rest)
+    print("--- stderr:\n" + err)
+    print(f"stopped {time.time() - t0:.2f} s after {name}")
+    ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127 (clean stop, not killed)")
+    ok(re.search(r"^squeal: error: interrupted by " + name, err, re.M) is not None, f"stderr says 'interrupted by {name}'")
+    ok(out in err, "the message names the results file")
+    no_temporaries(out)
+    if not ok(os.path.exists(out), f"{out} exists"):
+        return
+    with h5py.File(out, "r") as f:
+        ok(status(f).startswith("interrupted (" + name), f"root status '{status(f)}'")
+        T = unstable_period(f)
+        ref = float(args.get("--period", "0.0109"))
+        ok(T is not None and abs(T - ref) / ref < 5e-3, f"stability table: unstable period {T} ~ {ref}")
+        if ok("transient/t" in f, "has /transient/t"):
+            t = np.asarray(f["transient/t"][()])
+            U = np.asarray(f["transient/U"][()])
+            ok(int(f["transient"].attrs["complete"]) == 0, "/transient complete = 0")
+            ok(t.size >= 2 and U.shape[0] == t.size, f"{t.size} records, U {U.shape}")
+            dt = np.diff(t)
+            ok(t.size >= 2 and np.all(dt > 0) and np.ptp(dt) <= 1e-9 * dt.max(), "time increases at a constant step")
+            ok(np.all(np.isfinite(U)), "U finite")
+
+
+def concurrent(args, cmds):
+    out = args["--output"]
+    if os.path.exists(out):
+        os.remove(out)
+    procs = []
+    for c in cmds:
+        print("+ " + " ".join(c))
+        procs.append(subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+    outs = [p.communicate(timeout=300)[0] for p in procs]
+    for i, (p, o) in enumerate(zip(procs, outs)):
+        print(f"--- run {'AB'[i]} (exit {p.returncode}):\n{o}")
+        ok(p.returncode == 0, f"run {'AB'[i]} exit code 0")
+    no_temporaries(out)
+    mu_a = float(cmds[0][cmds[0].index("-contact_mu") + 1])
+    mu_b = float(cmds[1][cmds[1].index("-contact_mu") + 1])
+    with h5py.File(out, "r") as f:
+        ok(status(f) == "complete", f"status '{status(f)}'")
+        mu = float(f["model"].attrs["mu"])
+        ok(mu in (mu_a, mu_b), f"/model mu = {mu} is one run's ({mu_a} or {mu_b})")
+        ok(float(f["equilibrium"].attrs["mu"]) == mu, "/equilibrium mu = /model mu")
+        r = np.asarray(f["equilibrium/r"][()])
+        closed = r[:, 2] > 0
+        ok(closed.any() and np.allclose(r[closed, 0], mu * r[closed, 2], rtol=1e-12), "r_t = mu r_n at the closed points")
+        ok(("transient" in f) == (mu == mu_a), "/transient present exactly when the file is run A's")
+        print(f"the file is run {'A' if mu == mu_a else 'B'}'s")
+
+
+def refuse(args, cmd):
+    out = args["--output"]
+    text = "# a scene file, not results\nmodel:\n  type: three_dof\n"
+    with open(out, "w") as fh:
+        fh.write(text)
+    print("+ " + " ".join(cmd))
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    print(p.stdout + "\n--- stderr:\n" + p.stderr)
+    ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127")
+    lines = [l for l in p.stderr.splitlines() if l.startswith("squeal: error:")]
+    ok(len(lines) == 1 and "not a squeal results file" in lines[0] and out in lines[0],
+       "one error line naming the file and 'not a squeal results file'")
+    with open(out) as fh:
+        ok(fh.read() == text, f"{out} unchanged")
+    no_temporaries(out)
+
+
+def main():
+    argv = sys.argv[1:]
+    mode, argv = argv[0], argv[1:]
+    k = argv.index("--")
+    opts, rest = argv[:k], argv[k + 1:]
+    args = dict(zip(opts[::2], opts[1::2]))
+    if mode == "interrupt":
+        interrupt(args, rest)
+    elif mode == "concurrent":
+        k = rest.index("--")
+        concurrent(args, [rest[:k], rest[k + 1:]])
+    elif mode == "refuse":
+        refuse(args, rest)
+    else:
+        sys.exit(__doc__)
+    print("PASS" if failures == 0 else f"{failures} check(s) FAILED")
+    sys.exit(1 if failures else 0)
+
+
+if __name__ == "__main__":
+    main()
