@@ -423,7 +423,8 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
     const Eigen::Index m = (Eigen::Index)tclosed_.size();
     if (m > 0) {
       tw_.resize(m, k), tg_.resize(m, k);
-      for (Eigen::Index q = 0; q < m; ++q) tw_.row(q).noalias() = Ht_.row(tclosed_[q]) * tvf_; // delta w_f
+      tHc_ = Ht_(tclosed_, Eigen::all);
+      tw_.noalias() = tHc_ * tvf_;                                                             // delta w_f
       for (Eigen::Index q = 0; q < m; q += 3) {                                                  // delta g~^i
         const Eigen::Index n = tclosed_[q] + kN;
         tg_.row(q + kN).noalias() = Ht_.row(n) * dU;
@@ -485,7 +486,8 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         }
       }
       tdr_ = tAc_.partialPivLu().solve(trc_);
-      for (Eigen::Index q = 0; q < m; ++q) tvf_.noalias() += h * Y_.col(tclosed_[q]) * tdr_.row(q); // delta dU^{i+1}
+      tYc_ = Y_(Eigen::all, tclosed_);
+      tvf_.noalias() += h * (tYc_ * tdr_);                                                     // delta dU^{i+1}
     }
   }
   dU += h * (t * tvf_ + (1 - t) * ddU);

@@ -112,7 +112,7 @@ public:
   // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
   // factorised (the Krylov solve then converges in one iteration); above it GMRES on the products.
   PetscBool exact_jacobian = PETSC_TRUE;
-  PetscInt  jacobian_dense_max = 100;
+  PetscInt  jacobian_dense_max = 1000;
 
 private:
   friend struct ShootingCallbacks;
