@@ -392,7 +392,8 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
     transitions->clear();
     ti_->Contact().Status(r, prev);
   }
-  for (PetscInt i = 0; i < steps; ++i) {
+  const PetscInt run = flow_stop_ > 0 ? std::min(flow_stop_, steps) : steps;
+  for (PetscInt i = 0; i < run; ++i) {
     PetscCall(ti_->Step(U1, dU1, r, &info));
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
@@ -412,7 +413,8 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
       std::swap(prev, cur);
     }
   }
-  ++evaluations_;
+  if (run < steps) partial_steps_ += run;
+  else ++evaluations_;
   if (r_end) *r_end = r;
   PetscFunctionReturn(0);
 }
@@ -793,7 +795,19 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
     }
     std::vector<PetscInt> sm;
     const PetscReal       m = 0.5 * (a + b);
-    PetscCall(signature(m, sm));
+    // sa and sb agree after their last differing transition (step `last`); the flow from m only
+    // has to run up to there to tell which side it is on, and takes that common tail.
+    size_t ka = sa.size(), kb = sb.size();
+    while (ka >= 3 && kb >= 3 && std::equal(sa.begin() + ka - 3, sa.begin() + ka, sb.begin() + kb - 3)) ka -= 3, kb -= 3;
+    PetscInt last = -1;
+    for (size_t j = 0; j < ka; j += 3) last = std::max(last, sa[j]);
+    for (size_t j = 0; j < kb; j += 3) last = std::max(last, sb[j]);
+    flow_stop_ = last + 1;
+    const PetscErrorCode ierr = signature(m, sm);
+    flow_stop_ = -1;
+    PetscCall(ierr);
+    for (size_t j = 0; j < sa.size(); j += 3)
+      if (sa[j] > last) sm.insert(sm.end(), sa.begin() + j, sa.begin() + j + 3);
     if (sm != sa) PetscCall(bisect(a, m, sa, sm));
     if (sm != sb) PetscCall(bisect(m, b, sm, sb));
     PetscFunctionReturn(0);
@@ -937,7 +951,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
-  evaluations_ = tangents_ = setups_ = 0;
+  evaluations_ = tangents_ = setups_ = partial_steps_ = 0;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
   PetscCall(ti_->SetUp(*model_, T0 / steps));
   T_setup_ = T0;
@@ -1093,7 +1107,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     }
     if (!res.floquet_at_z0.empty()) classify(res.floquet_at_z0, res.trivial_at_z0, res.largest_at_z0);
   }
-  res.flow_evaluations    = evaluations_;
+  res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
   res.tangent_evaluations = tangents_;
   res.setups              = setups_;
   PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)",

@@ -44,7 +44,7 @@ struct ShootingResult {
   // iterations: index k of the iterate at which (6.3) holds, ||H(x_k)|| / ||Z0|| < eps1 and the
   // correction computed at x_k has |dT| / T < eps2; that correction is applied (corrections = k + 1).
   PetscInt                             iterations = 0, corrections = 0, flow_evaluations = 0;
-  // Of flow_evaluations: linear integrations of the step tangents (Jacobian products and exact
+  // flow_evaluations counts partial flows pro rata (steps / N_s, rounded up). Of them: linear integrations of the step tangents (Jacobian products and exact
   // monodromies); set-ups of the step matrices (one per new period).
   PetscInt                             tangent_evaluations = 0, setups = 0;
   PetscReal                            period = 0, residual = 0; // ||H|| / ||Z0|| at the returned iterate
@@ -150,6 +150,9 @@ private:
   AllGather       gather_;
   PetscMPIInt     size_ = 1;
   PetscInt        tangents_ = 0, setups_ = 0, N_ = 0;
+  // Bisection flows of the phase pieces stop after flow_stop_ steps; their steps, in partial_steps_,
+  // count as period integrations pro rata.
+  PetscInt        flow_stop_ = -1, partial_steps_ = 0;
 
   MPI_Comm                 comm_;
   const Model             *model_ = nullptr;
