@@ -18,10 +18,14 @@ PetscErrorCode EnergyAnalysis::SetFromOptions()
   PetscCall(PetscOptionsInt("-bisections", "Bisection halvings after the scan", "EnergyAnalysis", bisections, &bisections, nullptr));
   SquealOptionsReal("-q_max_factor", "Scan up to this multiple of the first lift-off amplitude", "EnergyAnalysis", &q_max_factor,
                     Range::Positive(), checks);
+  PetscCall(PetscOptionsInt("-extend", "Doublings of the scan range when it holds no balance", "EnergyAnalysis", extend, &extend,
+                            nullptr));
+  PetscCall(PetscOptionsBool("-all_modes", "Estimate every unstable mode (one line each), not only the chosen one",
+                             "EnergyAnalysis", all_modes, &all_modes, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
-  PetscCheck(n_scan >= 2 && samples >= 8 && bisections >= 0, comm_, kErrInput,
-             "energy: need -energy_n_scan >= 2, -energy_samples >= 8, -energy_bisections >= 0");
+  PetscCheck(n_scan >= 2 && samples >= 8 && bisections >= 0 && extend >= 0, comm_, kErrInput,
+             "energy: need -energy_n_scan >= 2, -energy_samples >= 8, -energy_bisections >= 0, -energy_extend >= 0");
   PetscFunctionReturn(0);
 }
 
@@ -48,6 +52,38 @@ PetscReal EnergyAnalysis::Reactions(PetscReal q) const
     }
   }
   return sum / cos_.size();
+}
+
+bool EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est) const
+{
+  const PetscReal q_max = factor * est.q_sep;
+  est.q.resize(n_scan);
+  est.P_damping.resize(n_scan);
+  est.P_reactions.resize(n_scan);
+  PetscInt crossing = -1;
+  for (PetscInt k = 0; k < n_scan; ++k) {
+    const PetscReal q  = (k + 1) * q_max / n_scan;
+    est.q[k]           = q;
+    est.P_damping[k]   = 0.5 * q * q * omega_ * omega_ * cphi_;
+    est.P_reactions[k] = Reactions(q);
+    if (crossing < 0 && k > 0 && est.P_reactions[k - 1] - est.P_damping[k - 1] > 0 && est.P_reactions[k] - est.P_damping[k] <= 0)
+      crossing = k - 1;
+  }
+  // Already saturated at the first scan point (a fine structure of f below q_max / n_scan): the
+  // balance lies in (0, q_1]; f > 0 near 0 for an unstable mode, so bisect there.
+  PetscReal lo = 0, hi = 0;
+  if (crossing >= 0) lo = est.q[crossing], hi = est.q[crossing + 1];
+  else if (est.P_reactions[0] - est.P_damping[0] <= 0 && PowerBalance(1e-6 * est.q[0]) > 0) {
+    lo = 1e-6 * est.q[0], hi = est.q[0];
+    crossing = 0;
+  }
+  if (crossing < 0) return false;
+  for (PetscInt i = 0; i < bisections; ++i) {
+    const PetscReal mid = 0.5 * (lo + hi);
+    (PowerBalance(mid) > 0 ? lo : hi) = mid;
+  }
+  est.q0 = 0.5 * (lo + hi);
+  return true;
 }
 
 PetscReal EnergyAnalysis::PowerBalance(PetscReal q) const { return Reactions(q) - 0.5 * q * q * omega_ * omega_ * cphi_; }
@@ -125,34 +161,13 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
     sin_[k] = std::sin(2 * PETSC_PI * k / samples);
   }
 
-  const PetscReal q_max = q_max_factor * est.q_sep;
-  est.q.resize(n_scan);
-  est.P_damping.resize(n_scan);
-  est.P_reactions.resize(n_scan);
-  PetscInt crossing = -1;
-  for (PetscInt k = 0; k < n_scan; ++k) {
-    const PetscReal q  = (k + 1) * q_max / n_scan;
-    est.q[k]           = q;
-    est.P_damping[k]   = 0.5 * q * q * omega_ * omega_ * cphi_;
-    est.P_reactions[k] = Reactions(q);
-    if (crossing < 0 && k > 0 && est.P_reactions[k - 1] - est.P_damping[k - 1] > 0 && est.P_reactions[k] - est.P_damping[k] <= 0)
-      crossing = k - 1;
+  est.found = false;
+  for (est.extensions = 0; est.extensions <= extend; ++est.extensions) {
+    est.q_max_factor = q_max_factor * std::ldexp(1.0, (int)est.extensions);
+    if ((est.found = Scan(est.q_max_factor, est))) break;
   }
-  // Already saturated at the first scan point (a fine structure of f below q_max / n_scan): the
-  // balance lies in (0, q_1]; f > 0 near 0 for an unstable mode, so bisect there.
-  PetscReal lo = 0, hi = 0;
-  if (crossing >= 0) lo = est.q[crossing], hi = est.q[crossing + 1];
-  else if (est.P_reactions[0] - est.P_damping[0] <= 0 && PowerBalance(1e-6 * est.q[0]) > 0) {
-    lo = 1e-6 * est.q[0], hi = est.q[0];
-    crossing = 0;
-  }
-  est.found = crossing >= 0;
+  if (!est.found) est.extensions = extend;
   if (est.found) {
-    for (PetscInt i = 0; i < bisections; ++i) {
-      const PetscReal mid = 0.5 * (lo + hi);
-      (PowerBalance(mid) > 0 ? lo : hi) = mid;
-    }
-    est.q0 = 0.5 * (lo + hi);
     // (7.5): the phase puts the normalising component at its maximum, on the surface (phi_n = 0).
     PetscCall(VecDuplicate(eq.U, est.U0.out()));
     PetscCall(VecWAXPY(est.U0, est.q0, m.phi_re, eq.U));
@@ -177,12 +192,18 @@ PetscErrorCode EnergyAnalysis::View(const EnergyEstimate &est, PetscViewer viewe
                                    (double)(est.omega / (2 * PETSC_PI)), (double)est.sigma));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "first lift-off amplitude q_sep = %.6e, scan up to %.4g q_sep\n", (double)est.q_sep,
-                                   (double)q_max_factor));
+                                   (double)est.q_max_factor));
+  if (est.extensions > 0 && est.found)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "no balance up to %.4g q_sep (-energy_q_max_factor): range doubled %" PetscInt_FMT " time(s)\n",
+                                     (double)q_max_factor, est.extensions));
   if (est.found)
     PetscCall(PetscViewerASCIIPrintf(viewer, "power balance at q0 = %.6e (%.3f q_sep); shooting guess T0 = %.7f s\n", (double)est.q0,
                                      (double)(est.q0 / est.q_sep), (double)est.T0));
   else
-    PetscCall(PetscViewerASCIIPrintf(viewer, "no balance in the scanned range: reaction power never falls below damping power\n"));
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "no balance up to %.4g q_sep (%" PetscInt_FMT " doubling(s) of -energy_q_max_factor %g): reaction power "
+                                     "never falls below damping power; raise -energy_q_max_factor above %.4g or -energy_extend\n",
+                                     (double)est.q_max_factor, est.extensions, (double)q_max_factor, (double)est.q_max_factor));
   PetscCall(PetscViewerASCIIPopTab(viewer));
   PetscFunctionReturn(0);
 }
@@ -205,6 +226,8 @@ PetscErrorCode EnergyAnalysis::Write(const EnergyEstimate &est, io::H5Writer &ou
   PetscCall(out.WriteAttribute("/energy", "q_sep", est.q_sep));
   PetscCall(out.WriteAttribute("/energy", "T0", est.T0));
   PetscCall(out.WriteAttribute("/energy", "found", (PetscInt)est.found));
+  PetscCall(out.WriteAttribute("/energy", "q_max_factor", est.q_max_factor));
+  PetscCall(out.WriteAttribute("/energy", "extensions", est.extensions));
   if (est.found) {
     PetscCall(out.WriteAttribute("/energy", "q0", est.q0));
     Vec  parts[2] = {est.U0, est.dU0};

@@ -1,5 +1,6 @@
 #include "squeal/stability/stability.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
 #include <algorithm>
@@ -38,11 +39,21 @@ PetscErrorCode StabilitySolver::SetFromOptions()
   ST  st;
   KSP ksp;
   PetscBool modes = modes_ ? PETSC_TRUE : PETSC_FALSE;
+  OptionChecks checks;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Linear stability of steady sliding", "StabilitySolver");
   PetscCall(PetscOptionsBool("-modes", "Compute and write mode shapes", "StabilitySolver::SetComputeModes", modes, &modes, nullptr));
   PetscCall(PetscOptionsName("-view", "Print the eigenvalue table (ascii viewer)", "StabilitySolver::View", nullptr));
+  SquealOptionsReal("-fmax", "Band (Hz) covered completely: nev grows until every eigenvalue with |lambda| < 2 pi fmax converged (0: only the nev asked)",
+                    "StabilitySolver", &fmax_, Range::NonNegative(), checks);
+  SquealOptionsReal("-fmin", "Lower end of the band (Hz): unstable modes below it are listed but not reported", "StabilitySolver",
+                    &fmin_, Range::NonNegative(), checks);
+  PetscCall(PetscOptionsInt("-nev_max", "Largest nev the band growth may use", "StabilitySolver", nev_max_, &nev_max_, nullptr));
   PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
+  PetscCheck(nev_max_ >= 1, comm_, kErrInput, "option -%snev_max = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), nev_max_);
+  PetscCheck(fmax_ == 0 || fmin_ < fmax_, comm_, kErrInput, "options -%sfmin = %g, -%sfmax = %g: expected fmin < fmax", prefix_.c_str(),
+             (double)fmin_, prefix_.c_str(), (double)fmax_);
   modes_ = modes;
 
   PetscCall(PEPCreate(comm_, pep_.out()));
@@ -103,19 +114,49 @@ PetscErrorCode StabilitySolver::Solve(const Model &model, const SlidingEquilibri
   PetscInt nev, ncv, mpd;
   PetscCall(PEPGetDimensions(pep_, &nev, &ncv, &mpd));
   // All 2 n_r eigenvalues of a small problem unless the user asked for fewer.
-  PetscBool nev_set;
+  PetscBool nev_set, ncv_set;
   PetscCall(PetscOptionsHasName(nullptr, prefix_.c_str(), "-pep_nev", &nev_set));
-  if (!nev_set) nev = PetscMin(2 * rp.n_r, 8);
-  nev = PetscMin(nev, 2 * rp.n_r);
-  PetscCall(PEPSetDimensions(pep_, nev, PETSC_DEFAULT, PETSC_DEFAULT));
-  PetscCall(PEPSolve(pep_));
-  PEPConvergedReason reason;
-  PetscCall(PEPGetConvergedReason(pep_, &reason));
-  PetscCall(PEPGetConverged(pep_, &res.converged));
-  res.requested = nev;
-  PetscCheck(reason > 0 || res.converged > 0, comm_, PETSC_ERR_NOT_CONVERGED,
-             "stability: the eigensolver converged no eigenvalue (reason %s); try -%spep_max_it or -%spep_ncv",
-             PEPConvergedReasons[reason], prefix_.c_str(), prefix_.c_str());
+  PetscCall(PetscOptionsHasName(nullptr, prefix_.c_str(), "-pep_ncv", &ncv_set));
+  const PetscInt n_all = 2 * rp.n_r;
+  if (!nev_set) nev = PetscMin(n_all, 8);
+  nev = PetscMin(nev, n_all);
+  const PetscInt  nev_cap = PetscMax(nev, PetscMin(nev_max_, n_all));
+  const PetscReal R       = 2 * PETSC_PI * fmax_;
+  res.fmin = fmin_;
+  res.fmax = fmax_;
+  res.n_r  = rp.n_r;
+  res.solves = 0;
+  std::vector<PetscReal> mods;
+  for (;;) {
+    PetscCall(PEPSetDimensions(pep_, nev, ncv_set ? ncv : PETSC_DEFAULT, PETSC_DEFAULT));
+    PetscCall(PEPSolve(pep_));
+    res.solves++;
+    PEPConvergedReason reason;
+    PetscCall(PEPGetConvergedReason(pep_, &reason));
+    PetscCall(PEPGetConverged(pep_, &res.converged));
+    res.requested = nev;
+    PetscCheck(reason > 0 || res.converged > 0 || nev < nev_cap, comm_, PETSC_ERR_NOT_CONVERGED,
+               "stability: the eigensolver converged no eigenvalue (reason %s); try -%spep_max_it or -%spep_ncv",
+               PEPConvergedReasons[reason], prefix_.c_str(), prefix_.c_str());
+    // The certificate (header): the nev-th smallest converged |lambda|; nothing if fewer converged.
+    mods.clear();
+    for (PetscInt i = 0; i < res.converged; ++i) {
+      PetscScalar kr, ki;
+      PetscCall(PEPGetEigenpair(pep_, i, &kr, &ki, nullptr, nullptr));
+      mods.push_back(std::hypot(PetscRealPart(kr), PetscRealPart(ki)));
+    }
+    std::sort(mods.begin(), mods.end());
+    res.all_eigenvalues = res.converged >= n_all;
+    res.complete_radius = res.all_eigenvalues ? PETSC_INFINITY : (res.converged >= nev ? mods[nev - 1] : 0.0);
+    if (fmax_ == 0 || res.BandCovered() || nev >= nev_cap) break;
+    // Grow in proportion to the missing part of the band (at least double): one or two solves.
+    const PetscReal reached = mods.empty() ? 0.0 : mods.back();
+    PetscInt        next    = 2 * nev;
+    if (reached > 0) next = PetscMax(next, (PetscInt)std::ceil(1.2 * nev * R / reached));
+    nev = PetscMin(next, nev_cap);
+  }
+  PetscCheck(res.converged > 0, comm_, PETSC_ERR_NOT_CONVERGED,
+             "stability: the eigensolver converged no eigenvalue; try -%spep_max_it or -%spep_ncv", prefix_.c_str(), prefix_.c_str());
 
   VecH xr, xi;
   PetscCall(MatCreateVecs(rp.Kr, xr.out(), nullptr));
@@ -145,7 +186,7 @@ PetscErrorCode StabilitySolver::Solve(const Model &model, const SlidingEquilibri
   });
   res.unstable.clear();
   for (size_t i = 0; i < res.modes.size(); ++i)
-    if (res.modes[i].Unstable()) res.unstable.push_back((PetscInt)i);
+    if (res.modes[i].Unstable() && res.modes[i].Frequency() >= fmin_) res.unstable.push_back((PetscInt)i);
   std::sort(res.unstable.begin(), res.unstable.end(),
             [&](PetscInt a, PetscInt b) { return res.modes[a].sigma > res.modes[b].sigma; });
   PetscFunctionReturn(0);
@@ -159,6 +200,7 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
   if (!ascii) PetscFunctionReturn(0);
   PetscCall(PetscViewerASCIIPrintf(viewer, "linear stability: %" PetscInt_FMT " eigenvalue(s) converged, %zu unstable\n",
                                    res.converged, res.unstable.size()));
+  PetscCall(ViewCompleteness(res, viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  mode   sigma (1/s)  omega (rad/s)     f (Hz)       T (s)      zeta  status     backward err\n"));
   for (size_t i = 0; i < res.modes.size(); ++i) {
     const Mode &m      = res.modes[i];
@@ -171,6 +213,28 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
       PetscCall(PetscViewerASCIIPrintf(viewer, "  %4zu  %12.5f  %13.5f  %9s  %10s  %8s  %-9s  %9.2e\n", i, (double)m.sigma, 0.0,
                                        "-", "-", "-", status, (double)m.error));
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::ViewCompleteness(const StabilityResult &res, PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  if (res.all_eigenvalues)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "complete: all %" PetscInt_FMT " eigenvalues of the reduced problem (n_r = %" PetscInt_FMT ")\n",
+                                     2 * res.n_r, res.n_r));
+  else
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "complete up to %.6g Hz: every eigenvalue with |lambda| < %.6g 1/s is in the table (nev = %" PetscInt_FMT
+                                     " of %" PetscInt_FMT ", %" PetscInt_FMT " solve(s))\n",
+                                     (double)res.CompleteUpTo(), (double)res.complete_radius, res.requested, 2 * res.n_r, res.solves));
+  if (res.fmax > 0 && !res.BandCovered())
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "BAND NOT COVERED: asked up to %g Hz, complete only up to %.6g Hz; raise -%snev_max (now %" PetscInt_FMT
+                                     ") or lower -%sfmax\n",
+                                     (double)res.fmax, (double)res.CompleteUpTo(), prefix_.c_str(), nev_max_, prefix_.c_str()));
   PetscFunctionReturn(0);
 }
 
@@ -234,6 +298,13 @@ PetscErrorCode WriteStability(const StabilityResult &res, io::H5Writer &out)
   PetscCall(out.WriteAttribute("/stability/period", "units", "s"));
   PetscCall(out.WriteAttribute("/stability/damping_ratio", "definition", "-sigma/|lambda|"));
   PetscCall(out.WriteAttribute("/stability/unstable", "order", "most unstable first (indices into eigenvalues)"));
+  PetscCall(out.WriteAttribute("/stability", "fmax", res.fmax));
+  PetscCall(out.WriteAttribute("/stability", "fmin", res.fmin));
+  PetscCall(out.WriteAttribute("/stability", "complete_up_to", res.CompleteUpTo()));
+  PetscCall(out.WriteAttribute("/stability", "all_eigenvalues", (PetscInt)res.all_eigenvalues));
+  PetscCall(out.WriteAttribute("/stability", "band_covered", (PetscInt)res.BandCovered()));
+  PetscCall(out.WriteAttribute("/stability", "complete_up_to_meaning",
+                               "Hz; every eigenvalue with |lambda| < 2 pi complete_up_to is in the table (inf: all eigenvalues)"));
   if (k > 0 && res.modes[0].phi_re) {
     PetscInt N;
     PetscCall(VecGetSize(res.modes[0].phi_re, &N));

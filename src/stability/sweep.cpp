@@ -108,7 +108,8 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
 
   // Solve the local share; keep results until the slot count is known everywhere.
   std::vector<std::vector<PetscReal>> local(npts);
-  std::vector<PetscInt>               failed(npts, 0);
+  std::vector<PetscInt>               failed(npts, 0), covered(npts, 0);
+  std::vector<PetscReal>              complete(npts, 0.0);
   PetscInt                            kmax = 0, done = 0;
   for (PetscInt p = rank; p < npts; p += size) {
     StabilityResult sr;
@@ -117,6 +118,9 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
     if (!ok) failed[p] = 1;
     else {
       for (const Mode &m : sr.modes) local[p].insert(local[p].end(), {m.sigma, m.omega});
+      covered[p]  = sr.BandCovered();
+      complete[p] = sr.CompleteUpTo();
+      res.fmax    = sr.fmax;
       kmax = PetscMax(kmax, (PetscInt)sr.modes.size());
     }
     if (monitor_ && rank == 0 && (++done % 10 == 0 || p + size >= npts))
@@ -126,6 +130,11 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
   PetscCallMPI(MPI_Allreduce(&kmax, &res.k, 1, MPIU_INT, MPI_MAX, comm_));
   res.failed.assign(npts, 0);
   PetscCallMPI(MPI_Allreduce(failed.data(), res.failed.data(), (int)npts, MPIU_INT, MPI_MAX, comm_));
+  res.covered.assign(npts, 0);
+  PetscCallMPI(MPI_Allreduce(covered.data(), res.covered.data(), (int)npts, MPIU_INT, MPI_MAX, comm_));
+  res.complete_up_to.assign(npts, 0.0);
+  PetscCallMPI(MPI_Allreduce(complete.data(), res.complete_up_to.data(), (int)npts, MPIU_REAL, MPI_MAX, comm_));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &res.fmax, 1, MPIU_REAL, MPI_MAX, comm_));
   // Sum of disjoint contributions; slots a point does not fill are marked and set to NaN after.
   std::vector<PetscReal> table(npts * res.k * 2, 0.0), filled(npts * res.k, 0.0);
   for (PetscInt p = 0; p < npts; ++p)
@@ -181,6 +190,13 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, freq.data(), (int)v_n_, MPIU_REAL, MPIU_SUM, comm_));
   res.critical_mu           = crit;
   res.coalescence_frequency = freq;
+  // A crossing (or its absence) is certified only if every point up to it covered its band.
+  res.critical_certified.assign(v_n_, 1);
+  for (PetscInt iv = 0; iv < v_n_; ++iv)
+    for (PetscInt i = 0; i < mu_n_; ++i) {
+      if (!std::isnan(crit[iv]) && res.mu[i] > crit[iv]) break;
+      if (!res.failed[iv * mu_n_ + i] && !res.covered[iv * mu_n_ + i]) res.critical_certified[iv] = 0;
+    }
   PetscFunctionReturn(0);
 }
 
@@ -197,13 +213,25 @@ PetscErrorCode SweepSolver::View(const SweepResult &res, PetscViewer viewer) con
                                    " point(s) without steady sliding\n",
                                    res.mu.size(), (double)res.mu.front(), (double)res.mu.back(), res.V.size(),
                                    (double)res.V.front(), (double)res.V.back(), nfail));
+  PetscInt nuncov = 0;
+  PetscReal worst = PETSC_INFINITY;
+  for (size_t p = 0; p < res.covered.size(); ++p)
+    if (!res.failed[p] && !res.covered[p]) nuncov++, worst = PetscMin(worst, res.complete_up_to[p]);
+  if (res.fmax > 0 && nuncov == 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "band up to %g Hz covered at every point (-stab_fmax)\n", (double)res.fmax));
+  else if (res.fmax > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "BAND NOT COVERED at %" PetscInt_FMT " point(s) (down to %.6g Hz of %g Hz): raise -stab_nev_max or lower "
+                                     "-stab_fmax; an unstable mode may be missing there (/sweep/band_covered)\n",
+                                     nuncov, (double)worst, (double)res.fmax));
   PetscCall(PetscViewerASCIIPrintf(viewer, "      V (m/s)   critical mu   coalescence f (Hz)\n"));
   for (size_t iv = 0; iv < res.V.size(); ++iv) {
+    const char *flag = res.critical_certified[iv] ? "" : "   (not certified: band not covered below it)";
     if (std::isnan(res.critical_mu[iv]))
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  %11.5g   %11s   %18s\n", (double)res.V[iv], "none", "-"));
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %11.5g   %11s   %18s%s\n", (double)res.V[iv], "none", "-", flag));
     else
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  %11.5g   %11.6f   %18.4f\n", (double)res.V[iv], (double)res.critical_mu[iv],
-                                       (double)res.coalescence_frequency[iv]));
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  %11.5g   %11.6f   %18.4f%s\n", (double)res.V[iv], (double)res.critical_mu[iv],
+                                       (double)res.coalescence_frequency[iv], flag));
   }
   PetscFunctionReturn(0);
 }
@@ -216,6 +244,11 @@ PetscErrorCode SweepSolver::Write(const SweepResult &res, io::H5Writer &out) con
   PetscCall(out.WriteArray("/sweep/eigenvalues", {(hsize_t)res.V.size(), (hsize_t)res.mu.size(), (hsize_t)res.k, 2},
                            res.eigenvalues.data()));
   PetscCall(out.WriteIntArray("/sweep/failed", {(hsize_t)res.V.size(), (hsize_t)res.mu.size()}, res.failed.data()));
+  PetscCall(out.WriteIntArray("/sweep/band_covered", {(hsize_t)res.V.size(), (hsize_t)res.mu.size()}, res.covered.data()));
+  PetscCall(out.WriteArray("/sweep/complete_up_to", {(hsize_t)res.V.size(), (hsize_t)res.mu.size()}, res.complete_up_to.data()));
+  PetscCall(out.WriteIntArray("/sweep/critical_certified", {(hsize_t)res.V.size()}, res.critical_certified.data()));
+  PetscCall(out.WriteAttribute("/sweep/complete_up_to", "units", "Hz; every eigenvalue with |lambda| < 2 pi x computed (inf: all; 0: failed point)"));
+  PetscCall(out.WriteAttribute("/sweep", "fmax", res.fmax));
   PetscCall(out.WriteAttribute("/sweep/V", "units", "m/s"));
   PetscCall(out.WriteAttribute("/sweep/eigenvalues", "units", "1/s"));
   PetscCall(out.WriteAttribute("/sweep/eigenvalues", "layout", "[V][mu][slot][re, im], omega >= 0 members, NaN: absent"));

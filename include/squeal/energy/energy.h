@@ -9,6 +9,8 @@
 //   reaction power     P_R(q) = < sum_c r_T,c . u_T,c >  (time mean over one period)        (7.4)
 // q0 is the first q where P_R - P_c changes sign from + to -: a scan of n_scan points up to
 // q_max = factor * q_sep (q_sep = min_c N_c / |psi_c|, the first lift-off), then bisection.
+// Without a crossing the range doubles (-energy_extend times) before the estimate gives up and
+// names the option to change.
 // It gives the shooting guess Z0 = (U_e + q0 Re phi, -q0 omega Im phi), T0 = 2 pi / omega (7.5).
 // Options prefix "energy_". Cost O(n_scan * samples * n_c) on replicated contact data.
 #pragma once
@@ -23,6 +25,8 @@ namespace squeal {
 struct EnergyEstimate {
   PetscInt               mode = -1; // index into the stability table
   PetscReal              omega = 0, sigma = 0, q_sep = 0, q0 = 0, T0 = 0;
+  PetscReal              q_max_factor = 0;  // the factor finally scanned (after any doublings)
+  PetscInt               extensions = 0;    // doublings of the scan range used
   bool                   found = false; // a + to - crossing exists in the scan range
   std::vector<PetscReal> q, P_damping, P_reactions;
   VecH                   U0, dU0; // the shooting guess Z0
@@ -31,7 +35,8 @@ struct EnergyEstimate {
 class EnergyAnalysis {
 public:
   explicit EnergyAnalysis(MPI_Comm comm) : comm_(comm) {}
-  // -energy_mode, -energy_n_scan, -energy_samples, -energy_q_max_factor, -energy_bisections
+  // -energy_mode, -energy_n_scan, -energy_samples, -energy_q_max_factor, -energy_bisections,
+  // -energy_extend, -energy_all_modes
   PetscErrorCode SetFromOptions();
   // Estimates the amplitude for the chosen (default: most unstable) mode. A stable equilibrium is
   // not an error: est.mode stays -1.
@@ -41,11 +46,14 @@ public:
   PetscErrorCode View(const EnergyEstimate &est, PetscViewer viewer) const;
   PetscErrorCode Write(const EnergyEstimate &est, io::H5Writer &out) const;
 
-  PetscInt  mode = -1, n_scan = 2000, samples = 4000, bisections = 60;
+  PetscInt  mode = -1, n_scan = 2000, samples = 4000, bisections = 60, extend = 4;
   PetscReal q_max_factor = 50;
+  PetscBool all_modes = PETSC_FALSE; // estimate every unstable mode, not only the chosen one (app)
 
 private:
   PetscReal Reactions(PetscReal q) const;
+  // Scan (0, factor q_sep] and bisect the first + to - crossing; false if there is none.
+  bool      Scan(PetscReal factor, EnergyEstimate &est) const;
 
   MPI_Comm                            comm_;
   const ContactSet                   *cs_ = nullptr;

@@ -1,6 +1,10 @@
 // Analysis "transient": a long run of the theta-method from the sliding equilibrium plus a small
 // multiple of a mode (default: the most unstable one), or from a given state, to the settled
 // limit cycle. Options prefix "transient_"; the integrator keeps its own ("theta_").
+// A model without an oscillatory mode (overdamped) runs when -transient_h is given.
+// Before the run the records' size (records x RecordBytes) is checked against
+// -transient_max_memory: over it, keep_every is raised automatically (and said), or, when the user
+// set -transient_keep_every, the run is refused with the numbers.
 //
 // Recorded every -transient_keep_every steps: t, U, dU, local reactions, contact status, and the
 // energy balance  E(t) - E(0) = W_reactions + W_load - W_damping  (E kinetic + elastic; every
@@ -17,8 +21,22 @@
 
 namespace squeal {
 
+// Settled means settled: over the last -transient_settle_periods cycles (up-crossings of the DOF
+// that moves most, last 20 % of the records) the period and the amplitude envelope (peak-to-peak
+// per cycle) change by less than -transient_settle_tol (relative); otherwise the trend says how
+// the motion is still changing. Records coarser than 1/8 of the period (or of the linear period)
+// cannot resolve the cycle: "aliased".
+enum class Trend { Settled = 0, Growing, Decaying, Drifting, Aliased, TooShort, NoOscillation };
+const char *TrendName(Trend t);
+
 struct TransientSummary {
-  PetscReal              period = 0;     // from up-crossings of the settled signal; 0 if none
+  PetscReal              period = 0;     // mean up-crossing spacing over the last 20 %; 0 if none
+  Trend                  trend = Trend::NoOscillation;
+  bool                   settled = false;
+  PetscReal              amplitude_rate = 0; // relative change of the peak-to-peak per period (last cycles)
+  PetscReal              period_change = 0;  // (max - min) / mean of the cycle periods (last cycles)
+  PetscInt               cycles = 0;         // complete cycles in the last 20 %
+  PetscReal              records_per_period = 0;
   std::vector<PetscReal> peak_to_peak;   // per DOF, over the last 20 % of the run
   PetscReal              frac_separated = 0, frac_stuck = 0, frac_sliding = 0; // over the last 20 %, all points
   PetscReal              mean_fp_iterations = 0;
@@ -29,7 +47,7 @@ struct TransientSummary {
 
 struct TransientResult {
   PetscReal              h = 0, theta = 0, T_ref = 0;
-  PetscInt               steps = 0, N = 0, nc = 0;
+  PetscInt               steps = 0, N = 0, nc = 0, keep_every = 1;
   std::vector<PetscReal> t, U, V, R, energy; // energy: [E, W_damping, W_reactions, W_load] per record
   std::vector<PetscInt>  status;
   bool                   complete = false;
@@ -41,17 +59,22 @@ public:
   explicit TransientAnalysis(MPI_Comm comm) : comm_(comm) {}
   // -transient_periods, -transient_t_final, -transient_steps_per_period, -transient_h,
   // -transient_keep_every, -transient_amplitude, -transient_mode, -transient_u0, -transient_du0,
-  // -transient_monitor, -transient_progress.
+  // -transient_monitor, -transient_progress, -transient_settle_tol, -transient_settle_periods,
+  // -transient_max_memory.
   PetscErrorCode SetFromOptions();
   // Runs; on failure (NaN, solver error) res holds everything recorded so far.
   PetscErrorCode Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab, ThetaIntegrator &ti,
                      TransientResult &res);
   PetscErrorCode View(const TransientResult &res, PetscViewer viewer) const;
   PetscErrorCode Write(const TransientResult &res, io::H5Writer &out) const;
-  static void    Summarise(TransientResult &res);
+  static void    Summarise(TransientResult &res, PetscReal settle_tol = 1e-3, PetscInt settle_periods = 5);
+  // Bytes one record takes in memory on rank 0 and in the results file.
+  static PetscReal RecordBytes(PetscInt N, PetscInt nc);
 
   PetscReal periods = 200, t_final = 0, steps_per_period = 1000, h = 0, amplitude = 1e-5;
-  PetscInt  keep_every = 1, mode = -1, monitor = 0;
+  PetscReal settle_tol = 1e-3, max_memory = 0; // max_memory: MiB of records; 0: a quarter of physical memory
+  PetscInt  keep_every = 1, mode = -1, monitor = 0, settle_periods = 5;
+  PetscBool keep_every_set = PETSC_FALSE;
   PetscBool progress = PETSC_FALSE, progress_set = PETSC_FALSE;
   std::vector<PetscReal> u0, du0;
 

@@ -3,9 +3,16 @@
 // "stab_" (-stab_pep_nev, -stab_pep_target, -stab_st_*, ...).
 //
 // Route: route (a) of method.md, the PEP on the full reduced problem, for every model size.
-// It computes the nev eigenvalues nearest the target (default 0, i.e. the lowest frequencies),
-// which is what a squeal study asks for; the two-stage modal route (b) for high frequency bands
-// of very large models is not implemented yet.
+// It computes the eigenvalues nearest the target 0 (the lowest |lambda|) and grows nev until the
+// band is covered (-stab_fmax, default 20 kHz, the audible band; -stab_nev_max caps the growth).
+//
+// Completeness certificate: shift-and-invert about 0 makes TOAR converge eigenvalues in order of
+// |lambda|, so when nconv >= nev, every eigenvalue with |lambda| < R_c, R_c = the nev-th smallest
+// converged |lambda|, is in the table (the usual Krylov caveat aside: an eigenvector orthogonal to
+// the start vector). "Complete up to X Hz" means R_c = 2 pi X: every eigenvalue with
+// |lambda| < 2 pi X, hence every mode with f < X whose |lambda| < 2 pi X. When all 2 n_r
+// eigenvalues converged the table is the whole spectrum (X = inf). The band is covered when
+// R_c > 2 pi f_max; a stable verdict holds only up to X.
 //
 // Reported per eigenvalue (member with omega >= 0 of each pair): sigma, omega, f = omega/2pi,
 // T = 2pi/omega, zeta = -sigma/|lambda|, unstable iff sigma > 0, PEP backward error, and the
@@ -37,8 +44,15 @@ struct Mode {
 
 struct StabilityResult {
   std::vector<Mode>     modes;    // sorted by omega, then sigma
-  std::vector<PetscInt> unstable; // indices into modes, most unstable first
-  PetscInt              requested = 0, converged = 0;
+  std::vector<PetscInt> unstable; // indices into modes, most unstable first (f >= fmin)
+  PetscInt              requested = 0, converged = 0, n_r = 0, solves = 0;
+  PetscReal             fmin = 0, fmax = 0;             // the band asked for (Hz); fmax 0: none
+  PetscReal             complete_radius = 0;            // R_c (1/s), see above; inf: all eigenvalues
+  bool                  all_eigenvalues = false;
+
+  // X = R_c / 2 pi (Hz): every eigenvalue with |lambda| < 2 pi X is in the table.
+  PetscReal CompleteUpTo() const { return complete_radius / (2 * PETSC_PI); }
+  bool      BandCovered() const { return all_eigenvalues || complete_radius > 2 * PETSC_PI * fmax; }
 
   // Largest growth rate over oscillatory modes (flutter); -inf if none.
   PetscReal MaxOscillatorySigma(PetscInt *which = nullptr) const;
@@ -49,11 +63,15 @@ public:
   explicit StabilitySolver(MPI_Comm comm) : comm_(comm) {}
   PetscErrorCode SetOptionsPrefix(const char *prefix);
   PetscErrorCode SetComputeModes(bool modes);
-  // -stab_view, -stab_modes, and everything of the PEP under -stab_.
+  // -stab_view, -stab_modes, -stab_fmax, -stab_fmin, -stab_nev_max, and everything of the PEP
+  // under -stab_.
   PetscErrorCode SetFromOptions();
   PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, StabilityResult &res);
   PetscErrorCode View(const StabilityResult &res, PetscViewer viewer) const;
   PetscErrorCode ViewFromOptions(const StabilityResult &res) const;
+  // One line: "complete up to X Hz (...)" or "complete: all ... eigenvalues", and whether the band
+  // was covered.
+  PetscErrorCode ViewCompleteness(const StabilityResult &res, PetscViewer viewer) const;
   PEP            GetPEP() const { return pep_; }
 
 private:
@@ -62,6 +80,8 @@ private:
   MPI_Comm    comm_;
   std::string prefix_ = "stab_";
   bool        modes_  = true;
+  PetscReal   fmax_ = 20000, fmin_ = 0;
+  PetscInt    nev_max_ = 1000;
   PEPH        pep_;
 };
 

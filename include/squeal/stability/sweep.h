@@ -6,6 +6,9 @@
 // PETSC_COMM_SELF and solves a round-robin share of the points (equilibrium recomputed for every
 // mu, since D_b depends on mu N_c); one reduction gathers the table on every rank. mu_c is
 // bracketed on the grid and refined by bisection (-sweep_bisect_tol), one V per rank.
+// Every point uses the band-complete stability solver (-stab_fmax); points whose band was not
+// covered are flagged (/sweep/band_covered) and a critical mu found above such a point is marked
+// as not certified (an unstable mode may have been missed below it).
 #pragma once
 
 #include "squeal/core/handle.h"
@@ -22,6 +25,12 @@ struct SweepResult {
   PetscInt               k = 0;       // eigenvalue slots per point (omega >= 0 members)
   std::vector<PetscReal> eigenvalues; // [iv][imu][slot][re, im], NaN where absent
   std::vector<PetscInt>  failed;      // per point: 0 solved, 1 no equilibrium or no eigenvalues
+  // Per point: the stability solver's completeness (Hz, inf: all eigenvalues) and whether it
+  // reached the band -stab_fmax; a point not covered may have missed an unstable mode.
+  std::vector<PetscReal> complete_up_to;
+  std::vector<PetscInt>  covered;
+  PetscReal              fmax = 0;
+  std::vector<PetscInt>  critical_certified; // per V: every point up to the crossing covered its band
   std::vector<PetscReal> critical_mu, coalescence_frequency; // per V; NaN if no crossing in range
 
   PetscReal MaxSigma(size_t iv, size_t imu) const;
