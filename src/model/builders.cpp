@@ -1,5 +1,6 @@
 #include "squeal/model/builders.h"
 #include "squeal/model/pad.h"
+#include "squeal/reduction/craig_bampton.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 #include "squeal/core/sparse.h"
@@ -393,6 +394,27 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   case 1: PetscCall(BuildChain(comm, ch, model)); break;
   case 3: PetscCall(BuildPad(comm, pad, model)); break;
   default: PetscCall(BuildFromFiles(comm, fs, model)); break;
+  }
+  // -reduce_type craig_bampton replaces the validated full model by its reduction; the sweep,
+  // which builds one model per rank on PETSC_COMM_SELF, then reduces once per rank.
+  {
+    CraigBampton cb(comm);
+    bool         reduce = false;
+    PetscCall(cb.SetFromOptions(&reduce));
+    if (reduce && !help) {
+      Model red(comm);
+      PetscCall(cb.Reduce(model, red));
+      PetscMPIInt wrank, rank;
+      PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &wrank));
+      PetscCallMPI(MPI_Comm_rank(comm, &rank));
+      if (wrank == 0 && rank == 0) PetscCall(cb.View(PETSC_VIEWER_STDOUT_SELF));
+      model.M        = std::move(red.M);
+      model.C        = std::move(red.C);
+      model.K        = std::move(red.K);
+      model.F        = std::move(red.F);
+      model.contacts = red.contacts;
+      model.name     = red.name;
+    }
   }
   if (export_dir) *export_dir = exportdir;
   PetscFunctionReturn(0);
