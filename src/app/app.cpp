@@ -2,6 +2,7 @@
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
+#include "squeal/continuation/continuation.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
 #include "squeal/shooting/shooting.h"
@@ -26,6 +27,7 @@ namespace {
 
 struct Request {
   bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
+  bool continuation = false;
 };
 
 PetscErrorCode ReadScene(int argc, char **argv)
@@ -37,7 +39,6 @@ PetscErrorCode ReadScene(int argc, char **argv)
   if (!set) PetscFunctionReturn(0);
   PetscCall(PetscTestFile(scene, 'r', &exists));
   PetscCheck(exists, PETSC_COMM_WORLD, PETSC_ERR_FILE_OPEN, "scene file '%s' not found", scene);
-  PetscCall(CheckYAMLFile(PETSC_COMM_WORLD, scene));
   PetscCall(PetscOptionsInsertFileYAML(PETSC_COMM_WORLD, nullptr, scene, PETSC_TRUE));
   // The scene must not override the command line: insert the arguments again on top.
   PetscCall(PetscOptionsInsertArgs(nullptr, argc - 1, argv + 1));
@@ -54,8 +55,9 @@ PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
     else if (a == "transient") req.transient = req.stability = true; // starts from a mode
     else if (a == "energy") req.energy = req.stability = true;
     else if (a == "shooting") req.shooting = req.energy = req.stability = true; // starts from the estimate
+    else if (a == "continuation") req.continuation = req.shooting = req.energy = req.stability = true; // from the shooting solution
     else {
-      SETERRQ(PETSC_COMM_WORLD, kErrInput, "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting)",
+      SETERRQ(PETSC_COMM_WORLD, kErrInput, "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation)",
               a.c_str());
     }
   }
@@ -125,7 +127,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   const std::string default_output = DefaultOutput();
   PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
   PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
-  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting", "RunApp", names, &nnames, &set));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting, continuation", "RunApp", names, &nnames, &set));
   std::snprintf(output, sizeof(output), "%s", default_output.c_str());
   PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
                                sizeof(output), nullptr));
@@ -159,6 +161,8 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(energy.SetFromOptions());
   Shooting shooting(comm);
   PetscCall(shooting.SetFromOptions());
+  Continuation continuation(comm);
+  PetscCall(continuation.SetFromOptions());
   if (help) PetscFunctionReturn(0);
   PetscCall(CheckUnusedOptions(comm, true));
 
@@ -261,6 +265,13 @@ PetscErrorCode RunApp(int argc, char **argv)
       PetscCall(serr);
       PetscCall(shooting.View(sres, PETSC_VIEWER_STDOUT_(comm)));
       PetscCall(Checkpoint(comm, out, "shooting"));
+      if (req.continuation) {
+        ContinuationResult cres;
+        PetscErrorCode     cerr = continuation.Run(model, eqs, stab, theta, shooting, sres, cres);
+        PetscCall(continuation.Write(cres, out)); // the branch computed so far, also after an error
+        PetscCall(cerr);
+        PetscCall(continuation.View(cres, PETSC_VIEWER_STDOUT_(comm)));
+      }
     }
   }
   if (req.transient) {
