@@ -1,10 +1,14 @@
 // Cost of one theta-method step (method.md §5).
-//   ThreeDof/Library: the 3-DOF case 1 through the library (ThetaIntegrator::Step, dense back end).
-//   ThreeDof/MinimalLoop: the same equations written out with fixed-size Eigen types, as a
-//     hand-written loop would; the yardstick for the library's overhead.
+//   ThreeDof/Library/case:k: the 3-DOF reference case k through the library (ThetaIntegrator::Step,
+//     dense back end); case 1: separation/slip at V = 3, case 2: stick/slip at V = 0.75.
+//   ThreeDof/MinimalLoop/case:k: the same equations written out by hand with fixed-size Eigen
+//     types (H = I, no PETSc, no dynamic sizes); the yardstick for the library's overhead.
 //   Chain/N/nc/dense: the synthetic multi-contact chain, per-step cost against N and n_c, with the
 //     dense (1) and the sparse KSP (0) back end.
-// Counters: fp_passes = mean fixed-point passes per step.
+// Counters: fp_passes = mean fixed-point passes per step. After the runs, one line per case prints
+// library / hand-written time per step (fastest repetition of each).
+// Instruction counts: `squeal_bench --instr CASE VARIANT STEPS` (VARIANT library or minimal) runs
+// STEPS steps inside CountedSteps only, for callgrind's --toggle-collect (benchmarks/step_instructions.sh).
 #include "squeal/integration/theta.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/stability.h"
@@ -15,6 +19,11 @@
 #include <Eigen/Dense>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <string>
 
 using namespace squeal;
 
@@ -56,11 +65,108 @@ void Prepare(Prepared &p, PetscInt warm, PetscInt dense_max)
   for (PetscInt i = 0; i < warm; ++i) PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
 }
 
+// The two 3-DOF reference cases (method.md §7): 1 = separation/slip, 2 = stick/slip.
+ThreeDofParams CaseParams(int which)
+{
+  ThreeDofParams prm;
+  prm.V = which == 2 ? 0.75 : 3.0;
+  return prm;
+}
+
+void PrepareThreeDof(Prepared &p, int which)
+{
+  PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, CaseParams(which), p.model));
+  Prepare(p, 50000, 2000);
+}
+
+// The same step with fixed-size types: no PETSc, no dynamic sizes, H = I, g0 = 0; same h, theta,
+// rho, tolerance (1e-12, R_ref = 1) and pass limit (500) as the library's defaults.
+struct Minimal {
+  using M3 = Eigen::Matrix3d;
+  using V3 = Eigen::Vector3d;
+  M3     P1_, P2_, Y_, hW_;
+  V3     p3_, U_, dU_, r_;
+  double th_ = 0.5, h_ = 0, mu_ = 0, V_ = 0, rho_n_ = 0, rho_t_ = 0, passes = 0;
+
+  // Same model, step size and warmed-up start as the library run in p.
+  explicit Minimal(const Prepared &p, const ThreeDofParams &prm)
+  {
+    PetscReal Kx[3][3], Kt[3][3];
+    ThreeDofStiffness(prm, Kx, Kt);
+    M3 K;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) K(i, j) = Kt[i][j];
+    const M3 Mm = prm.m * M3::Identity(), C = prm.c * M3::Identity();
+    const V3 F(0, 0, -prm.Fn);
+    const double th = p.ti.Theta(), h = p.ti.StepSize();
+    th_ = th, h_ = h, mu_ = prm.mu, V_ = prm.V;
+    const M3             A = Mm + h * th * C + h * h * th * th * K, B = Mm - h * (1 - th) * C - h * h * th * (1 - th) * K;
+    const Eigen::LLT<M3> llt(A);
+    P1_ = llt.solve(B), P2_ = -h * llt.solve(K), Y_ = llt.solve(M3::Identity()), hW_ = h * Y_;
+    p3_    = h * llt.solve(F);
+    rho_n_ = 1 / (h * h * Y_(2, 2)), rho_t_ = 1 / (h * Y_(0, 0));
+    r_     = V3(p.r[0], p.r[1], p.r[2]);
+    const PetscScalar *a, *b;
+    VecGetArrayRead(p.U, &a);
+    VecGetArrayRead(p.dU, &b);
+    U_  = V3(a[0], a[1], a[2]);
+    dU_ = V3(b[0], b[1], b[2]);
+    VecRestoreArrayRead(p.U, &a);
+    VecRestoreArrayRead(p.dU, &b);
+  }
+
+  // Runs one step per element of `steps` with the state in locals, as a hand-written loop would.
+  template <class Range>
+  void Run(Range &&steps)
+  {
+    const M3     P1 = P1_, P2 = P2_, Y = Y_, hW = hW_;
+    const V3     p3 = p3_;
+    const double th = th_, h = h_, mu = mu_, V = V_, rho_n = rho_n_, rho_t = rho_t_;
+    V3           U = U_, dU = dU_, r = r_;
+    long         total = 0;
+    for (auto &&step : steps) {
+      (void)step;
+      const V3     vf  = P1 * dU + P2 * U + p3;
+      const double gn0 = U[2] + h * (1 - th) * dU[2];
+      V3           v   = vf + hW * r;
+      int          k   = 0;
+      for (k = 1; k <= 500; ++k) {
+        const double rn = std::max(0.0, r[2] - rho_n * (gn0 + h * v[2]));
+        double       rt = r[0] - rho_t * (v[0] - V), rb = r[1] - rho_t * v[1];
+        const double m = std::hypot(rt, rb), a = mu * rn;
+        if (m > a) rt *= a / m, rb *= a / m;
+        const V3 d(rt - r[0], rb - r[1], rn - r[2]);
+        r += d;
+        v += hW * d;
+        if (d.lpNorm<1>() <= 1e-12 * (1 + rn)) break;
+      }
+      total += k;
+      const V3 dU0 = dU;
+      dU           = vf + h * (Y * r);
+      U += h * (th * dU + (1 - th) * dU0);
+      benchmark::DoNotOptimize(U);
+    }
+    U_ = U, dU_ = dU, r_ = r, passes += total;
+  }
+};
+
+// 0, 1, ..., n - 1 for Minimal::Run outside Google Benchmark.
+struct Steps {
+  long n;
+  struct It {
+    long i;
+    bool operator!=(const It &o) const { return i != o.i; }
+    void operator++() { ++i; }
+    long operator*() const { return i; }
+  };
+  It begin() const { return {0}; }
+  It end() const { return {n}; }
+};
+
 void ThreeDofLibrary(benchmark::State &state)
 {
   Prepared p;
-  PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, ThreeDofParams{}, p.model));
-  Prepare(p, 50000, 2000);
+  PrepareThreeDof(p, (int)state.range(0));
   StepInfo info;
   double   passes = 0;
   for (auto _ : state) {
@@ -70,62 +176,40 @@ void ThreeDofLibrary(benchmark::State &state)
   state.counters["fp_passes"] = passes / state.iterations();
 }
 
-// The same step with fixed-size types: no PETSc, no dynamic sizes, H = I.
 void ThreeDofMinimalLoop(benchmark::State &state)
 {
-  using M3 = Eigen::Matrix3d;
-  using V3 = Eigen::Vector3d;
-  ThreeDofParams prm;
-  PetscReal      Kx[3][3], Kt[3][3];
-  ThreeDofStiffness(prm, Kx, Kt);
-  M3 K;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) K(i, j) = Kt[i][j];
-  const M3     Mm = prm.m * M3::Identity(), C = prm.c * M3::Identity();
-  const V3     F(0, 0, -prm.Fn);
-  const double th = 0.5, h = 0.010905130684917356 / 1000, mu = prm.mu, V = prm.V;
-  const M3     A = Mm + h * th * C + h * h * th * th * K, B = Mm - h * (1 - th) * C - h * h * th * (1 - th) * K;
-  const Eigen::LLT<M3> llt(A);
-  const M3     P1 = llt.solve(B), P2 = -h * llt.solve(K), Y = llt.solve(M3::Identity()), hW = h * Y;
-  const V3     p3 = h * llt.solve(F);
-  const double rho_n = 1 / (h * h * Y(2, 2)), rho_t = 1 / (h * Y(0, 0));
-  // Same start and warm-up as the library run.
   Prepared p;
-  PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, prm, p.model));
-  Prepare(p, 50000, 2000);
-  V3 U, dU, r(p.r[0], p.r[1], p.r[2]);
-  {
-    const PetscScalar *a, *b;
-    VecGetArrayRead(p.U, &a);
-    VecGetArrayRead(p.dU, &b);
-    U  = V3(a[0], a[1], a[2]);
-    dU = V3(b[0], b[1], b[2]);
-    VecRestoreArrayRead(p.U, &a);
-    VecRestoreArrayRead(p.dU, &b);
+  PrepareThreeDof(p, (int)state.range(0));
+  Minimal m(p, CaseParams((int)state.range(0)));
+  m.Run(state);
+  state.counters["fp_passes"] = m.passes / state.iterations();
+}
+
+// The only code callgrind counts in --instr mode (--toggle-collect=*CountedSteps*).
+__attribute__((noinline)) void CountedStepsLibrary(Prepared &p, long steps, double *passes)
+{
+  StepInfo info;
+  for (long i = 0; i < steps; ++i) {
+    PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
+    *passes += info.contact.iterations;
   }
+}
+
+__attribute__((noinline)) void CountedStepsMinimal(Minimal &m, long steps) { m.Run(Steps{steps}); }
+
+int CountSteps(int which, const char *variant, long steps)
+{
+  Prepared p;
+  PrepareThreeDof(p, which);
   double passes = 0;
-  for (auto _ : state) {
-    const V3     vf  = P1 * dU + P2 * U + p3;
-    const double gn0 = U[2] + h * (1 - th) * dU[2];
-    V3           v   = vf + hW * r;
-    int          k   = 0;
-    for (k = 1; k <= 500; ++k) {
-      const double rn = std::max(0.0, r[2] - rho_n * (gn0 + h * v[2]));
-      double       rt = r[0] - rho_t * (v[0] - V), rb = r[1] - rho_t * v[1];
-      const double m = std::hypot(rt, rb), a = mu * rn;
-      if (m > a) rt *= a / m, rb *= a / m;
-      const V3 d(rt - r[0], rb - r[1], rn - r[2]);
-      r += d;
-      v += hW * d;
-      if (d.lpNorm<1>() <= 1e-12 * (1 + rn)) break;
-    }
-    passes += k;
-    const V3 dU0 = dU;
-    dU           = vf + h * (Y * r);
-    U += h * (th * dU + (1 - th) * dU0);
-    benchmark::DoNotOptimize(U);
+  if (!std::strcmp(variant, "library")) CountedStepsLibrary(p, steps, &passes);
+  else {
+    Minimal m(p, CaseParams(which));
+    CountedStepsMinimal(m, steps);
+    passes = m.passes;
   }
-  state.counters["fp_passes"] = passes / state.iterations();
+  std::printf("case %d %s: %ld steps, %.4f fixed-point passes per step\n", which, variant, steps, passes / steps);
+  return 0;
 }
 
 void Chain(benchmark::State &state)
@@ -150,18 +234,56 @@ void Chain(benchmark::State &state)
   state.counters["dense"]     = p.ti.Dense();
 }
 
+// Console output plus, at the end, library / hand-written time per step for each 3-DOF case
+// (fastest repetition of each, the least disturbed by other load on the machine).
+class RatioReporter : public benchmark::ConsoleReporter {
+public:
+  void ReportRuns(const std::vector<Run> &runs) override
+  {
+    ConsoleReporter::ReportRuns(runs);
+    for (const Run &r : runs) {
+      if (r.run_type != Run::RT_Iteration || r.error_occurred) continue;
+      const std::string name = r.run_name.str();
+      const double      ns   = r.GetAdjustedRealTime() * (r.time_unit == benchmark::kMicrosecond ? 1e3 : 1.0);
+      if (!best_.count(name) || ns < best_[name]) best_[name] = ns;
+    }
+  }
+  void Finalize() override
+  {
+    for (int c : {1, 2}) {
+      const std::string suffix = "/case:" + std::to_string(c), lib = "ThreeDof/Library" + suffix, min = "ThreeDof/MinimalLoop" + suffix;
+      if (best_.count(lib) && best_.count(min))
+        std::printf("3-DOF case %d: library %.1f ns/step, hand-written %.1f ns/step, ratio %.2f\n", c, best_[lib], best_[min],
+                    best_[lib] / best_[min]);
+    }
+    ConsoleReporter::Finalize();
+  }
+
+private:
+  std::map<std::string, double> best_;
+};
+
 } // namespace
 
-BENCHMARK(ThreeDofLibrary)->Name("ThreeDof/Library");
-BENCHMARK(ThreeDofMinimalLoop)->Name("ThreeDof/MinimalLoop");
+BENCHMARK(ThreeDofLibrary)->Name("ThreeDof/Library")->ArgName("case")->Arg(1)->Arg(2);
+BENCHMARK(ThreeDofMinimalLoop)->Name("ThreeDof/MinimalLoop")->ArgName("case")->Arg(1)->Arg(2);
 BENCHMARK(Chain)->Name("Chain")->ArgNames({"N", "nc", "dense"})->ArgsProduct({{30, 90, 300}, {10}, {0, 1}})
   ->ArgsProduct({{300, 1500, 3000}, {10, 100}, {0}})->Args({1500, 100, 1})->Unit(benchmark::kMicrosecond);
 
 int main(int argc, char **argv)
 {
+  // --instr CASE VARIANT STEPS: no Google Benchmark run, only the counted steps (for callgrind).
+  if (argc == 5 && !std::strcmp(argv[1], "--instr")) {
+    int one = 1;
+    PetscCall(SlepcInitialize(&one, &argv, nullptr, nullptr));
+    const int rc = CountSteps(std::atoi(argv[2]), argv[3], std::atol(argv[4]));
+    PetscCall(SlepcFinalize());
+    return rc;
+  }
   benchmark::Initialize(&argc, argv);
   PetscCall(SlepcInitialize(&argc, &argv, nullptr, nullptr));
-  benchmark::RunSpecifiedBenchmarks();
+  RatioReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
   PetscCall(SlepcFinalize());
   return 0;

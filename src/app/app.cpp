@@ -39,6 +39,7 @@ PetscErrorCode ReadScene(int argc, char **argv)
   if (!set) PetscFunctionReturn(0);
   PetscCall(PetscTestFile(scene, 'r', &exists));
   PetscCheck(exists, PETSC_COMM_WORLD, PETSC_ERR_FILE_OPEN, "scene file '%s' not found", scene);
+  PetscCall(CheckYAMLFile(PETSC_COMM_WORLD, scene));
   PetscCall(PetscOptionsInsertFileYAML(PETSC_COMM_WORLD, nullptr, scene, PETSC_TRUE));
   // The scene must not override the command line: insert the arguments again on top.
   PetscCall(PetscOptionsInsertArgs(nullptr, argc - 1, argv + 1));

@@ -25,7 +25,11 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
         PetscCheck(d >= 0 && d < N, comm, kErrInput,
                    "contact %" PetscInt_FMT ": DOF index %" PetscInt_FMT " out of range [0, %" PetscInt_FMT ")", c, d, N);
         auto it = owner.find(d);
-        PetscCheck(it == owner.end() || it->second == c, comm, kErrInput,
+        // One DOF twice in a row would make the x, y, z directions of the node dependent.
+        PetscCheck(it == owner.end() || it->second != c, comm, kErrInput,
+                   "contact %" PetscInt_FMT " uses DOF %" PetscInt_FMT " twice (the x y z DOFs of a contact row must be distinct)",
+                   c, d);
+        PetscCheck(it == owner.end(), comm, kErrInput,
                    "contacts %" PetscInt_FMT " and %" PetscInt_FMT " share DOF %" PetscInt_FMT
                    " (each DOF may belong to one contact point)", it == owner.end() ? c : it->second, c, d);
         owner[d] = c;

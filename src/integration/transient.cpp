@@ -136,6 +136,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
       const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
       budget           = pages > 0 && page > 0 ? 0.25 * (PetscReal)pages * (PetscReal)page : 4.0 * 1073741824.0;
     }
+    PetscCallMPI(MPI_Bcast(&budget, 1, MPIU_REAL, 0, comm_)); // rank 0 holds the records: its memory counts
     const PetscReal per   = RecordBytes(N, nc);
     const PetscReal need  = per * (PetscReal)(nsteps / keep_every + 2);
     if (need > budget) {
@@ -349,7 +350,8 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
   s.records_per_period = s.period > 0 && dt > 0 ? s.period / dt : 0;
   s.settled            = false;
   s.amplitude_rate = s.period_change = 0;
-  if (!(hi - lo > 0) || s.cycles == 0) s.trend = Trend::NoOscillation;
+  if (!(hi - lo > 0)) s.trend = Trend::NoOscillation;
+  else if (s.cycles == 0) s.trend = res.T_ref > 0 && dt > res.T_ref / 8 ? Trend::Aliased : Trend::TooShort;
   else if (s.records_per_period < 8 || (res.T_ref > 0 && dt > res.T_ref / 8)) s.trend = Trend::Aliased;
   else if (s.cycles < settle_periods + 1) s.trend = Trend::TooShort;
   else {

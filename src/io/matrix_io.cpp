@@ -2,6 +2,8 @@
 
 #include <petscviewer.h>
 
+#include <hdf5.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -68,17 +70,38 @@ PetscErrorCode OpenForWriting(MPI_Comm comm, const char *path, FILE **fp)
   PetscFunctionReturn(0);
 }
 
-// MatLoad would only say "Not a matrix object in file", without naming the file.
+// The first k PetscInts of a PETSc binary file (big-endian); false if the file is shorter.
+bool ReadBinaryInts(const char *path, int k, long long *v, long long *bytes)
+{
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return false;
+  *bytes = (long long)in.tellg();
+  in.seekg(0);
+  for (int i = 0; i < k; ++i) {
+    unsigned char      buf[sizeof(PetscInt)] = {};
+    unsigned long long x                     = 0;
+    if (!in.read(reinterpret_cast<char *>(buf), sizeof buf)) return false;
+    for (unsigned char b : buf) x = (x << 8) | b;
+    v[i] = sizeof(PetscInt) == 4 ? (long long)(int32_t)(uint32_t)x : (long long)x;
+  }
+  return true;
+}
+
+// MatLoad would only say "Not a matrix object in file" or "Read past end of file", without
+// naming the file (and leaves its viewer behind).
 PetscErrorCode CheckBinaryHeader(MPI_Comm comm, const char *path)
 {
-  unsigned char      buf[sizeof(PetscInt)] = {};
-  unsigned long long classid               = 0;
-  std::ifstream      in;
+  long long h[4] = {0, 0, 0, 0}, bytes = 0;
   PetscFunctionBeginUser;
-  PetscCallCXX(in.open(path, std::ios::binary); in.read(reinterpret_cast<char *>(buf), sizeof buf));
-  for (unsigned char b : buf) classid = (classid << 8) | b; // PETSc binary files are big-endian
-  PetscCheck(in && classid == MAT_FILE_CLASSID, comm, PETSC_ERR_FILE_UNEXPECTED,
-             "matrix file '%s': not a PETSc binary matrix (Matrix Market files must end in .mtx)", path);
+  const bool got = ReadBinaryInts(path, 4, h, &bytes);
+  PetscCheck(got && h[0] == MAT_FILE_CLASSID, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "matrix file '%s': not a PETSc binary matrix (accepted: PETSc binary, or Matrix Market with extension .mtx)", path);
+  PetscCheck(h[1] >= 0 && h[2] >= 0 && h[3] >= 0, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "matrix file '%s': corrupt PETSc binary header (%lld x %lld, %lld nonzeros)", path, h[1], h[2], h[3]);
+  const long long need = (4 + h[1] + h[3]) * (long long)sizeof(PetscInt) + h[3] * (long long)sizeof(PetscScalar);
+  PetscCheck(bytes >= need, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "matrix file '%s' is truncated: %lld bytes, but its header (%lld x %lld, %lld nonzeros) needs %lld", path, bytes,
+             h[1], h[2], h[3], need);
   PetscFunctionReturn(0);
 }
 
@@ -307,8 +330,10 @@ PetscErrorCode MatLoadFromFile(MPI_Comm comm, const char *path, Mat *A)
   PetscCall(OpenBinaryViewer(comm, path, FILE_MODE_READ, &viewer));
   PetscCall(MatCreate(comm, &B));
   PetscCall(MatSetType(B, MATAIJ));
-  PetscCall(MatLoad(B, viewer));
-  PetscCall(PetscViewerDestroy(&viewer));
+  const PetscErrorCode ierr = MatLoad(B, viewer);
+  PetscCall(PetscViewerDestroy(&viewer)); // also when MatLoad failed
+  if (ierr) PetscCall(MatDestroy(&B));
+  PetscCall(ierr);
   *A = B;
   PetscFunctionReturn(0);
 }
@@ -329,6 +354,160 @@ PetscErrorCode MatSaveToFile(Mat A, const char *path)
   PetscCall(OpenBinaryViewer(comm, path, FILE_MODE_WRITE, &viewer));
   PetscCall(MatView(A, viewer));
   PetscCall(PetscViewerDestroy(&viewer));
+  PetscFunctionReturn(0);
+}
+
+namespace {
+
+bool HasExtension(const char *path, const char *ext)
+{
+  const size_t n = std::strlen(path), e = std::strlen(ext);
+  auto         same = [](char a, char b) { return std::tolower((unsigned char)a) == b; };
+  return n >= e && std::equal(path + n - e, path + n, ext, same);
+}
+
+const char kVecFormats[] = "accepted: PETSc binary, HDF5 .h5 with dataset /F, Matrix Market .mtx (array or coordinate, "
+                           "N x 1), text .txt/.dat/.csv (one number per line)";
+
+// Whitespace- or comma-separated numbers; '#' and '%' start comments.
+PetscErrorCode ReadTextColumn(MPI_Comm comm, const char *path, std::vector<PetscReal> &x)
+{
+  std::ifstream in;
+  std::string   line;
+  long long     lineno = 0;
+  PetscFunctionBeginUser;
+  PetscCallCXX(in.open(path));
+  while (true) {
+    bool more = false;
+    PetscCallCXX(more = (bool)std::getline(in, line));
+    if (!more) break;
+    ++lineno;
+    const size_t c = line.find_first_of("#%");
+    if (c != std::string::npos) line.erase(c);
+    std::replace(line.begin(), line.end(), ',', ' ');
+    const char *p = line.c_str();
+    while (!AtEnd(p)) {
+      double v;
+      PetscCheck(ReadNumber(p, &v) && std::isfinite(v), comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "load vector file '%s', line %lld: not a finite number (%s)", path, lineno, kVecFormats);
+      PetscCallCXX(x.push_back(v));
+    }
+  }
+  PetscCheck(!x.empty(), comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s' holds no number (%s)", path, kVecFormats);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReadMatrixMarketVector(MPI_Comm comm, const char *path, std::vector<PetscReal> &x)
+{
+  std::ifstream in;
+  std::string   line;
+  long long     lineno = 0, found = 0;
+  Header        h;
+  PetscFunctionBeginUser;
+  PetscCallCXX(in.open(path));
+  PetscCall(ReadHeader(comm, path, in, lineno, &h));
+  PetscCheck(h.M == 1 || h.N == 1, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "load vector file '%s': a %" PetscInt_FMT " x %" PetscInt_FMT " matrix, expected N x 1 (%s)", path, h.M, h.N, kVecFormats);
+  PetscCallCXX(x.assign(std::max(h.M, h.N), 0.0));
+  while (true) {
+    bool more = false;
+    PetscCallCXX(more = NextDataLine(in, line, lineno));
+    if (!more) break;
+    PetscCheck(++found <= h.entries, comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s', line %lld: more entries than the header's %lld",
+               path, lineno, h.entries);
+    const char *p = line.c_str();
+    long long   i = found, j = 1;
+    double      v;
+    if (h.coordinate)
+      PetscCheck(ReadNumber(p, &i) && ReadNumber(p, &j) && i >= 1 && j >= 1 && i <= h.M && j <= h.N, comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "load vector file '%s', line %lld: expected 'row column value' within %" PetscInt_FMT " x %" PetscInt_FMT, path, lineno,
+                 h.M, h.N);
+    PetscCheck(ReadNumber(p, &v) && AtEnd(p) && std::isfinite(v), comm, PETSC_ERR_FILE_UNEXPECTED,
+               "load vector file '%s', line %lld: expected one finite value", path, lineno);
+    x[h.M == 1 ? j - 1 : i - 1] += v;
+  }
+  PetscCheck(found == h.entries, comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s': header promises %lld entries, found %lld", path,
+             h.entries, found);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReadBinaryVector(MPI_Comm comm, const char *path, std::vector<PetscReal> &x)
+{
+  long long h[2] = {0, 0}, bytes = 0;
+  PetscFunctionBeginUser;
+  const bool got = ReadBinaryInts(path, 2, h, &bytes);
+  PetscCheck(got && h[0] == VEC_FILE_CLASSID, comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s': not a PETSc binary vector (%s)",
+             path, kVecFormats);
+  const long long need = 2 * (long long)sizeof(PetscInt) + h[1] * (long long)sizeof(PetscScalar);
+  PetscCheck(h[1] >= 0 && bytes >= need, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "load vector file '%s' is truncated: %lld bytes, but its header (%lld entries) needs %lld", path, bytes, h[1], need);
+  std::ifstream in;
+  PetscCallCXX(in.open(path, std::ios::binary); in.seekg(2 * sizeof(PetscInt)); x.resize(h[1]));
+  for (long long i = 0; i < h[1]; ++i) {
+    unsigned char      b[8];
+    unsigned long long u = 0;
+    PetscCallCXX(in.read(reinterpret_cast<char *>(b), 8));
+    for (unsigned char c : b) u = (u << 8) | c;
+    double v;
+    std::memcpy(&v, &u, 8);
+    x[i] = v;
+  }
+  PetscCheck((bool)in, comm, PETSC_ERR_FILE_READ, "load vector file '%s': read error", path);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReadHDF5Vector(MPI_Comm comm, const char *path, const char *dataset, std::vector<PetscReal> &x)
+{
+  PetscFunctionBeginUser;
+  // Every rank reads (serial driver, read-only): the vector is small, and no MPI-IO is involved.
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  std::string err;
+  const hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) err = "not an HDF5 file";
+  else if (H5Lexists(f, dataset, H5P_DEFAULT) <= 0) err = std::string("no dataset ") + dataset;
+  else {
+    const hid_t d = H5Dopen2(f, dataset, H5P_DEFAULT);
+    const hid_t sp = d >= 0 ? H5Dget_space(d) : -1;
+    hsize_t     dims[2] = {0, 1};
+    const int   nd      = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1;
+    if (nd < 1 || nd > 2 || H5Sget_simple_extent_dims(sp, dims, nullptr) < 0 || (nd == 2 && dims[0] != 1 && dims[1] != 1))
+      err = std::string("dataset ") + dataset + " is not a vector (N or N x 1)";
+    else {
+      x.resize(dims[0] * (nd == 2 ? dims[1] : 1));
+      if (H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x.data()) < 0) err = std::string("cannot read ") + dataset;
+    }
+    if (sp >= 0) H5Sclose(sp);
+    if (d >= 0) H5Dclose(d);
+  }
+  if (f >= 0) H5Fclose(f);
+  PetscCheck(err.empty(), comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s': %s (%s)", path, err.c_str(), kVecFormats);
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode VecLoadFromFile(MPI_Comm comm, const char *path, Vec *v)
+{
+  std::vector<PetscReal> x;
+  PetscBool              found;
+  PetscMPIInt            here, everywhere;
+  PetscInt               rstart, rend;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTestFile(path, 'r', &found));
+  here = found ? 1 : 0;
+  PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, comm));
+  PetscCheck(everywhere, comm, PETSC_ERR_FILE_OPEN, "load vector file '%s' not found (or not a readable file)", path);
+  if (HasExtension(path, ".h5") || HasExtension(path, ".hdf5")) PetscCall(ReadHDF5Vector(comm, path, "/F", x));
+  else if (HasExtension(path, ".mtx")) PetscCall(ReadMatrixMarketVector(comm, path, x));
+  else if (HasExtension(path, ".txt") || HasExtension(path, ".dat") || HasExtension(path, ".csv")) PetscCall(ReadTextColumn(comm, path, x));
+  else PetscCall(ReadBinaryVector(comm, path, x));
+  for (size_t i = 0; i < x.size(); ++i)
+    PetscCheck(std::isfinite(x[i]), comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s': entry %zu is NaN or infinite", path, i);
+  PetscCall(VecCreateMPI(comm, PETSC_DECIDE, (PetscInt)x.size(), v));
+  PetscCall(VecGetOwnershipRange(*v, &rstart, &rend));
+  for (PetscInt i = rstart; i < rend; ++i) PetscCall(VecSetValue(*v, i, x[i], INSERT_VALUES));
+  PetscCall(VecAssemblyBegin(*v));
+  PetscCall(VecAssemblyEnd(*v));
   PetscFunctionReturn(0);
 }
 

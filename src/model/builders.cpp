@@ -1,5 +1,6 @@
 #include "squeal/model/builders.h"
 #include "squeal/model/pad.h"
+#include "squeal/reduction/craig_bampton.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 #include "squeal/core/sparse.h"
@@ -7,6 +8,7 @@
 
 #include <petscviewerhdf5.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -165,14 +167,42 @@ PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set
   std::ifstream in(path);
   std::string   line;
   int           lineno = 0;
+  // CSV as FE tools write it: commas separate, and a header line may name the columns (any order).
+  static const char *const kColumns[] = {"x", "y", "z", "tx", "ty", "tz", "nx", "ny", "nz", "speed_factor", "g0"};
+  std::vector<int>         column; // column[j]: canonical index of the j-th field (empty: positional)
   set.points.clear();
   while (std::getline(in, line)) {
     ++lineno;
     const auto hash = line.find('#');
     if (hash != std::string::npos) line.erase(hash);
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::replace(line.begin(), line.end(), ';', ' ');
     std::istringstream ss(line);
     std::vector<double> v;
     std::string         tok;
+    if (set.points.empty() && column.empty()) {
+      std::istringstream hs(line);
+      std::string        first;
+      char              *end = nullptr;
+      if (hs >> first && (std::strtod(first.c_str(), &end), end == first.c_str())) { // not a number: a header
+        bool seen[11] = {};
+        for (std::string name = first; !name.empty(); name.clear(), hs >> name) {
+          std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return (char)std::tolower(c); });
+          if (name.rfind("dof_", 0) == 0) name = name.substr(4);
+          int k = 0;
+          while (k < 11 && name != kColumns[k]) ++k;
+          PetscCheck(k < 11 && !seen[k], comm, PETSC_ERR_FILE_UNEXPECTED,
+                     "contact table '%s', line %d: column '%s' %s (columns: x y z tx ty tz nx ny nz [speed_factor] [g0])", path, lineno,
+                     name.c_str(), k < 11 ? "given twice" : "unknown");
+          seen[k] = true;
+          column.push_back(k);
+        }
+        for (int k = 0; k < 9; ++k)
+          PetscCheck(seen[k], comm, PETSC_ERR_FILE_UNEXPECTED, "contact table '%s', line %d: header has no column '%s' (columns: x y z tx ty tz nx ny nz [speed_factor] [g0])",
+                     path, lineno, kColumns[k]);
+        continue;
+      }
+    }
     while (ss >> tok) {
       char  *end = nullptr;
       double x   = std::strtod(tok.c_str(), &end);
@@ -181,6 +211,14 @@ PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set
       v.push_back(x);
     }
     if (v.empty()) continue;
+    if (!column.empty()) {
+      PetscCheck(v.size() == column.size(), comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "contact table '%s', line %d: %d values, the header names %d columns", path, lineno, (int)v.size(), (int)column.size());
+      std::vector<double> w(11, 0.0);
+      w[9] = 1.0; // speed_factor default; g0 defaults to 0
+      for (size_t j = 0; j < v.size(); ++j) w[column[j]] = v[j];
+      v = w;
+    }
     PetscCheck(v.size() >= 9 && v.size() <= 11, comm, PETSC_ERR_FILE_UNEXPECTED,
                "contact table '%s', line %d: %d values, expected 9 to 11 (x y z tx ty tz nx ny nz [speed_factor [g0]])", path,
                lineno, (int)v.size());
@@ -240,17 +278,7 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
              " x %" PetscInt_FMT,
              s.mass.c_str(), mM, nM, s.stiffness.c_str(), mK, nK);
 
-  PetscBool exists;
-  PetscCall(PetscTestFile(s.load.c_str(), 'r', &exists));
-  PetscCheck(exists, comm, PETSC_ERR_FILE_OPEN, "load vector file '%s' not found", s.load.c_str());
-  const bool  h5 = s.load.size() > 3 && s.load.compare(s.load.size() - 3, 3, ".h5") == 0;
-  PetscViewer viewer;
-  PetscCall(VecCreate(comm, model.F.out()));
-  PetscCall(PetscObjectSetName((PetscObject)(Vec)model.F, "F"));
-  if (h5) PetscCall(PetscViewerHDF5Open(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
-  else PetscCall(io::OpenBinaryViewer(comm, s.load.c_str(), FILE_MODE_READ, &viewer));
-  PetscCall(VecLoad(model.F, viewer));
-  PetscCall(PetscViewerDestroy(&viewer));
+  PetscCall(io::VecLoadFromFile(comm, s.load.c_str(), model.F.out()));
   PetscInt nF;
   PetscCall(VecGetSize(model.F, &nF));
   PetscCheck(nF == mK, comm, kErrInput, "mismatched sizes: load vector F ('%s') has %" PetscInt_FMT " entries, K is %" PetscInt_FMT " x %" PetscInt_FMT,
@@ -339,8 +367,8 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
     } files[] = {{"-mass", "Mass matrix file (PETSc binary, or Matrix Market .mtx)", &fs.mass},
                  {"-stiffness", "Stiffness matrix file (PETSc binary, or .mtx)", &fs.stiffness},
                  {"-damping", "Damping matrix file (optional; PETSc binary, or .mtx)", &fs.damping},
-                 {"-load", "Load vector F (PETSc binary, or HDF5 .h5 with dataset /F)", &fs.load},
-                 {"-contacts", "Contact table (text: x y z tx ty tz nx ny nz [speed_factor [g0]])", &fs.contacts}};
+                 {"-load", "Load vector F (PETSc binary, HDF5 .h5 with dataset /F, Matrix Market .mtx, text column .txt/.dat/.csv)", &fs.load},
+                 {"-contacts", "Contact table (text: x y z tx ty tz nx ny nz [speed_factor [g0]]; or .csv with a header naming these columns)", &fs.contacts}};
     for (auto &f : files) {
       buf[0] = '\0';
       PetscCall(PetscOptionsString(f.opt, f.text, "BuildFromFiles", buf, buf, sizeof(buf), &set));
@@ -366,6 +394,27 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   case 1: PetscCall(BuildChain(comm, ch, model)); break;
   case 3: PetscCall(BuildPad(comm, pad, model)); break;
   default: PetscCall(BuildFromFiles(comm, fs, model)); break;
+  }
+  // -reduce_type craig_bampton replaces the validated full model by its reduction; the sweep,
+  // which builds one model per rank on PETSC_COMM_SELF, then reduces once per rank.
+  {
+    CraigBampton cb(comm);
+    bool         reduce = false;
+    PetscCall(cb.SetFromOptions(&reduce));
+    if (reduce && !help) {
+      Model red(comm);
+      PetscCall(cb.Reduce(model, red));
+      PetscMPIInt wrank, rank;
+      PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &wrank));
+      PetscCallMPI(MPI_Comm_rank(comm, &rank));
+      if (wrank == 0 && rank == 0) PetscCall(cb.View(PETSC_VIEWER_STDOUT_SELF));
+      model.M        = std::move(red.M);
+      model.C        = std::move(red.C);
+      model.K        = std::move(red.K);
+      model.F        = std::move(red.F);
+      model.contacts = red.contacts;
+      model.name     = red.name;
+    }
   }
   if (export_dir) *export_dir = exportdir;
   PetscFunctionReturn(0);

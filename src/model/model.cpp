@@ -55,6 +55,43 @@ PetscErrorCode CheckDiagonal(Mat A, const char *what, const char *problem, bool 
   PetscFunctionReturn(0);
 }
 
+// A positive diagonal does not make a symmetric matrix definite ([[1,1],[1,1]] is singular,
+// [[1,2],[2,1]] indefinite): count the pivots of an LDL^T factorisation (MUMPS, null-pivot
+// detection relative to ||A||) instead. Semi-definite: zero pivots allowed, negative ones not.
+PetscErrorCode CheckDefinite(Mat A, const char *what, bool semi, MPI_Comm comm)
+{
+  Mat            F;
+  IS             rperm, cperm;
+  MatFactorInfo  info;
+  MatFactorError ferr;
+  PetscInt       N, nneg = 0, nzero = 0, npos = 0;
+  PetscFunctionBeginUser;
+  PetscCall(MatGetSize(A, &N, nullptr));
+  PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, &F));
+  PetscCall(MatMumpsSetIcntl(F, 24, 1));      // detect null pivots ...
+  PetscCall(MatMumpsSetCntl(F, 3, 1e-10));    // ... below 1e-10 ||A|| (scaled)
+  PetscCall(MatMumpsSetIcntl(F, 13, 1));      // inertia that is valid on several ranks too
+  PetscCall(MatGetOrdering(A, MATORDERINGNATURAL, &rperm, &cperm));
+  PetscCall(MatFactorInfoInitialize(&info));
+  PetscCall(MatCholeskyFactorSymbolic(F, A, rperm, &info));
+  PetscCall(MatCholeskyFactorNumeric(F, A, &info));
+  PetscCall(MatFactorGetError(F, &ferr));
+  if (ferr == MAT_FACTOR_NOERROR) PetscCall(MatGetInertia(F, &nneg, &nzero, &npos));
+  PetscCall(ISDestroy(&rperm));
+  PetscCall(ISDestroy(&cperm));
+  PetscCall(MatDestroy(&F));
+  PetscCheck(ferr != MAT_FACTOR_OUTMEMORY, comm, PETSC_ERR_MEM,
+             "out of memory factorising %s (%" PetscInt_FMT " x %" PetscInt_FMT ") to check that it is positive definite", what, N, N);
+  PetscCheck(ferr == MAT_FACTOR_NOERROR, comm, kErrInput,
+             "%s is singular: its LDL^T factorisation fails (a positive diagonal is not enough; expected symmetric positive %sdefinite)",
+             what, semi ? "semi-" : "");
+  PetscCheck(nneg == 0 && (semi || nzero == 0), comm, kErrInput,
+             "%s is not positive %sdefinite: its LDL^T factorisation has %" PetscInt_FMT " negative and %" PetscInt_FMT
+             " zero pivot(s) of %" PetscInt_FMT " (%s, although a diagonal may be positive)",
+             what, semi ? "semi-" : "", nneg, nzero, N, nneg ? "indefinite" : "singular");
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CheckFinite(Mat A, const char *what, MPI_Comm comm)
 {
   PetscReal nrm;
@@ -106,6 +143,7 @@ PetscErrorCode Model::Validate()
   PetscCall(CheckSymmetric(M, "mass matrix M", comm_));
   PetscCall(CheckSymmetric(K, "stiffness matrix K", comm_));
   if (C) PetscCall(CheckSymmetric(C, "damping matrix C", comm_));
+  PetscCall(CheckDefinite(M, "mass matrix M", false, comm_));
   PetscCall(contacts.Validate(comm_, N));
   PetscFunctionReturn(0);
 }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace squeal {
 
@@ -89,7 +90,30 @@ PetscErrorCode EquilibriumSolver::SolveBordered(const Model &model, const std::v
   KSPConvergedReason reason;
   PetscCall(KSPGetConvergedReason(ksp_, &reason));
   *ok = reason >= 0;
-  if (!*ok) PetscFunctionReturn(0);
+  if (!*ok) {
+    // Out of memory is not singular: say so and name the knob (MUMPS INFOG(1) = -8, -9, -13).
+    PC             pc;
+    Mat            Fm;
+    MatFactorError ferr = MAT_FACTOR_NOERROR;
+    PetscBool      factor, mumps = PETSC_FALSE;
+    PetscInt       icntl14 = 20;
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)pc, &factor, PCLU, PCCHOLESKY, ""));
+    if (factor) {
+      PetscCall(PCFactorGetMatrix(pc, &Fm));
+      PetscCall(MatFactorGetError(Fm, &ferr));
+      MatSolverType st;
+      PetscCall(PCFactorGetMatSolverType(pc, &st));
+      PetscCall(PetscStrcmp(st, MATSOLVERMUMPS, &mumps));
+      if (mumps) PetscCall(MatMumpsGetIcntl(Fm, 14, &icntl14));
+    }
+    PetscCheck(ferr != MAT_FACTOR_OUTMEMORY, comm_, PETSC_ERR_MEM,
+               "sliding equilibrium: the factorisation of the %" PetscInt_FMT " x %" PetscInt_FMT
+               " bordered matrix ran out of memory%s; raise -%smat_mumps_icntl_14 (extra workspace in %%, now %" PetscInt_FMT
+               ") or give the run more memory",
+               n + na, n + na, mumps ? " (MUMPS INFOG(1) = -9: workspace too small)" : "", prefix_.c_str(), icntl14);
+    PetscFunctionReturn(0);
+  }
 
   const PetscScalar *xx;
   PetscScalar       *u;
@@ -124,10 +148,26 @@ PetscErrorCode EquilibriumSolver::Solve(const Model &model, SlidingEquilibrium &
     for (PetscInt c = 0; c < nc; ++c)
       if (closed[c]) eq.active.push_back(c);
     PetscCall(SolveBordered(model, eq.active, cs.mu, eq.U, eq.N, &ok));
-    PetscCheck(ok, comm_, kErrInput,
-               "no steady sliding: the bordered equilibrium matrix [K -B_mu; H_n^T 0] is singular at mu = %g "
-               "(friction-induced divergence, or a rigid-body motion left free by the contacts)",
-               (double)cs.mu);
+    if (!ok) {
+      // Singular at mu: friction-induced divergence only if the frictionless matrix is regular.
+      bool ok0 = false;
+      if (cs.mu != 0) {
+        VecH                   U0;
+        std::vector<PetscReal> N0;
+        PetscCall(VecDuplicate(model.F, U0.out()));
+        PetscCall(SolveBordered(model, eq.active, 0.0, U0, N0, &ok0));
+      }
+      PetscCheck(!ok0, comm_, kErrInput,
+                 "no steady sliding: friction-induced divergence at mu = %g (the bordered equilibrium matrix "
+                 "[K -B_mu; H_n^T 0] is singular at this mu and regular at mu = 0)",
+                 (double)cs.mu);
+      char mu[32]; // PETSc's %g would print "0." for 0
+      std::snprintf(mu, sizeof mu, "%g", (double)cs.mu);
+      SETERRQ(comm_, kErrInput,
+              "the bordered equilibrium matrix [K -B_mu; H_n^T 0] is singular at mu = %s%s: K with the %zu closed contact(s) "
+              "leaves a rigid-body motion free (missing support or zero stiffness)",
+              mu, cs.mu != 0 ? " and at mu = 0" : "", eq.active.size());
+    }
     PetscCall(cs.LocalComponents(eq.U, comp));
     eq.gap.resize(nc);
     PetscReal scale = 0;

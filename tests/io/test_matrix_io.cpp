@@ -280,7 +280,7 @@ TEST(MatrixIO, UnsupportedFormatsAreReported)
        ": unsupported Matrix Market object 'vector' (expected matrix)"},
       {"noheader.mtx", "1 1 1\n1 1 1.0\n", ": first line is not a '%%MatrixMarket' header"},
       {"empty.mtx", "", ": first line is not a '%%MatrixMarket' header"},
-      {"text.bin", GENERAL "1 1 1\n1 1 1\n", ": not a PETSc binary matrix (Matrix Market files must end in .mtx)"},
+      {"text.bin", GENERAL "1 1 1\n1 1 1\n", ": not a PETSc binary matrix (accepted: PETSc binary, or Matrix Market with extension .mtx)"},
   };
   for (const BadFile &c : cases) ExpectRejected(c);
 }

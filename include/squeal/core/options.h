@@ -32,6 +32,10 @@ PetscErrorCode CheckReal(MPI_Comm comm, const char *prefix, const char *name, Pe
 // only after a solve) are left for a final call.
 PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views);
 
+// Parses a YAML file (rank 0) and fails naming the file, line and column of a syntax error;
+// PETSc's own loader says only "YAML parser loading error". Collective.
+PetscErrorCode CheckYAMLFile(MPI_Comm comm, const char *path);
+
 // Checks collected while an options block is open and run after PetscOptionsEnd(): returning
 // from inside the block would leak what PETSc allocated for it.
 class OptionChecks {

@@ -17,9 +17,12 @@
 // on one rank, MUMPS LU on several; options -theta_ksp_*, -theta_pc_*). The dense matrices are N x N, so
 // the step becomes memory-bound past a few hundred DOFs: measured crossover between N = 90 and
 // N = 300 (benchmarks/bench_step.cpp). Nothing is allocated per step or per fixed-point pass.
+// The dense step runs in a DenseStepKernel chosen in SetUp (integration/step_kernel.h): compiled for
+// fixed sizes when the model matches one (-theta_fixed_size, default true), run-time sizes otherwise.
 #pragma once
 
 #include "squeal/contact/local_solver.h"
+#include "squeal/integration/step_kernel.h"
 #include "squeal/core/gather.h"
 #include "squeal/core/handle.h"
 #include "squeal/model/model.h"
@@ -77,6 +80,7 @@ public:
   PetscReal                 Theta() const { return theta_; }
   PetscReal                 StepSize() const { return h_; }
   bool                      Dense() const { return dense_; }
+  bool                      FixedSizeKernel() const { return kernel_ && kernel_->FixedSize(); }
   const Eigen::MatrixXd    &Delassus() const { return W_; }
   const LocalContactSolver &Contact() const { return local_; }
   const Model              &GetModel() const { return *model_; }
@@ -85,6 +89,8 @@ public:
 private:
   PetscErrorCode SetUpDense();
   PetscErrorCode DenseStep(Eigen::Ref<Eigen::VectorXd> U, Eigen::Ref<Eigen::VectorXd> dU, Eigen::VectorXd &r, StepInfo *info);
+  void           SetUpKernel(); // after SetUpDense and local_.Setup
+  PetscErrorCode StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info); // gathered dense or sparse
   PetscErrorCode Gather(Vec x, Eigen::VectorXd &out); // the whole vector on every rank (dense back end)
   PetscErrorCode SetUpSparse();
   PetscErrorCode ToLocal(Vec x, Eigen::VectorXd &out); // sparse back end: H^T x gathered
@@ -106,6 +112,8 @@ private:
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
   PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
+  std::unique_ptr<DenseStepKernel> kernel_; // (S4)-(S9) on the matrices above, sizes fixed at compile time if possible
+  PetscBool       fixed_size_ = PETSC_TRUE; // -theta_fixed_size
   AllGather       gather_;
   const Model    *dense_for_ = nullptr;
   Eigen::VectorXd full_U_, full_dU_;

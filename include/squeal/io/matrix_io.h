@@ -26,6 +26,13 @@ PetscErrorCode MatLoadFromFile(MPI_Comm comm, const char *path, Mat *A);
 // ".mtx" (any case) -> MatViewMatrixMarket; anything else -> PETSc binary (no ".info" file).
 PetscErrorCode MatSaveToFile(Mat A, const char *path);
 
+// A load vector, by extension: ".h5" (dataset /F, N or N x 1), ".mtx" (Matrix Market array or
+// coordinate, N x 1 or 1 x N), ".txt"/".dat"/".csv" (numbers separated by blanks, commas or
+// newlines; '#' and '%' comments), anything else PETSc binary (size checked against the header:
+// a truncated file is named, not read past its end). Every rank reads the file; the Vec is
+// distributed with PETSC_DECIDE. Every failure names the file and the accepted formats.
+PetscErrorCode VecLoadFromFile(MPI_Comm comm, const char *path, Vec *v);
+
 // A PETSc binary viewer that neither writes nor reads the ".info" side file.
 PetscErrorCode OpenBinaryViewer(MPI_Comm comm, const char *path, PetscFileMode mode, PetscViewer *viewer);
 

@@ -51,6 +51,8 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
 // x y z: 0-based global DOF indices of the node's translations; t: unit sliding direction;
 // n: unit normal of the counter-surface pointing towards the structure (b = n x t);
 // speed_factor: V_c / V (default 1); g0: initial gap (default 0).
+// Commas (CSV) separate like blanks; a first line of names (x y z tx ty tz nx ny nz, optional
+// speed_factor g0, any order; "dof_x" for "x") maps the columns.
 PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set);
 PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactSet &set);
 

@@ -1,0 +1,64 @@
+// Craig-Bampton reduction of a model to its contact DOFs plus fixed-interface modes
+// (method.md §4.4 route (b), §9), options prefix "reduce_".
+//
+// Partition the DOFs into the interface B (every translational DOF of every contact node, in the
+// contact order: point c's node DOFs x, y, z at 3c .. 3c+2) and the interior I (the rest).
+//   fixed-interface modes  K_II Phi = M_II Phi Omega^2,  Phi^T M_II Phi = I,  the m lowest
+//                          (SLEPc EPS, GHEP, Krylov-Schur, shift-and-invert with a direct solver)
+//                          with f <= fmax (-reduce_fmax) and/or the first nmodes (-reduce_nmodes);
+//   constraint modes       Psi = -K_II^{-1} K_IB  (one factorisation of K_II, MatMatSolve on the
+//                          dense block of 3 n_c right-hand sides);
+//   T = [ I_BB   0  ]      q = T [u_B; eta],   A_r = T^T A T for A = M, C, K,  F_r = T^T F.
+//       [ Psi   Phi ]
+// The reduced model has 3 n_c + m DOFs: the interface DOFs first, in contact order, so the contact
+// set becomes a selection of the first 3 n_c DOFs (H stays a selection, Q a deletion), then the
+// modal coordinates. C is the projection of the full C, so Rayleigh damping stays consistent.
+// The result is an ordinary Model (same code path; -model_export writes it, -model_type file
+// reads it back). Exact for static loads on the interface; the error on the eigenvalues in a band
+// falls as fmax grows above it (the usual rule: fmax >= 1.5-2 x the top frequency of interest).
+//
+// Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_view,
+// and the eigensolver under -reduce_eps_* / -reduce_st_*.
+#pragma once
+
+#include "squeal/core/handle.h"
+#include "squeal/model/model.h"
+
+#include <string>
+#include <vector>
+
+namespace squeal {
+
+struct ReductionInfo {
+  PetscInt               N = 0, n_interface = 0, n_modes = 0;
+  std::vector<PetscReal> freq;                // Hz, fixed-interface modes kept
+  PetscReal              time_modes = 0, time_static = 0, time_project = 0, time_total = 0; // s
+  PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
+};
+
+class CraigBampton {
+public:
+  explicit CraigBampton(MPI_Comm comm) : comm_(comm) {}
+  PetscErrorCode SetOptionsPrefix(const char *prefix);
+  PetscErrorCode SetFMax(PetscReal fmax);     // Hz; <= 0: no frequency cut-off
+  PetscErrorCode SetNModes(PetscInt nmodes);  // < 0: no count limit
+  PetscErrorCode SetFBand(PetscReal fband);   // Hz; > 0: refuse fmax below it
+  // -reduce_type, -reduce_fmax, -reduce_nmodes, -reduce_fband; *enabled tells whether
+  // -reduce_type asks for a reduction.
+  PetscErrorCode SetFromOptions(bool *enabled = nullptr);
+  // full -> reduced (on full's communicator). full is left untouched.
+  PetscErrorCode Reduce(const Model &full, Model &reduced);
+  PetscErrorCode View(PetscViewer viewer) const;
+  const ReductionInfo &Info() const { return info_; }
+
+private:
+  MPI_Comm      comm_;
+  std::string   prefix_ = "reduce_";
+  PetscReal     fmax_   = 0;
+  PetscInt      nmodes_ = -1;
+  PetscReal     fband_  = 0;
+  PetscInt      max_modes_ = 400;
+  ReductionInfo info_;
+};
+
+} // namespace squeal

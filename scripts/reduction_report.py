@@ -1,0 +1,73 @@
+#!/usr/bin/python3
+"""Craig-Bampton reduction error against run time (issue 8, item 3).
+
+Runs squeal's stability analysis on the full pad model once and on its Craig-Bampton reductions
+for a list of cut-off frequencies, and prints, per cut-off: reduced size, modes kept, reduction
+time, stability time, and the largest relative error of the unstable eigenvalues of the full
+model (each matched to the nearest reduced eigenvalue).
+
+  /usr/bin/python3 scripts/reduction_report.py --squeal build/squeal --scene examples/pad/pad.yaml \
+      --fmax 12000 15000 20000 30000 40000 [--np 2] [--no-full]
+"""
+import argparse
+import os
+import re
+import subprocess
+import tempfile
+import time
+
+import h5py
+import numpy as np
+
+
+def run(cmd, np_):
+    if np_ > 1:
+        cmd = ["mpiexec", "--oversubscribe", "-n", str(np_)] + cmd
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    t0 = time.time()
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    wall = time.time() - t0
+    if p.returncode != 0:
+        raise SystemExit("failed: %s\n%s%s" % (" ".join(cmd), p.stdout[-2000:], p.stderr[-2000:]))
+    return p.stdout, wall
+
+
+def unstable(h5):
+    with h5py.File(h5, "r") as f:
+        ev = f["/stability/eigenvalues"][()]
+        idx = np.atleast_1d(f["/stability/unstable"][()]).astype(int) if "/stability/unstable" in f else []
+        lam = ev[:, 0] + 1j * ev[:, 1]
+        return lam, np.array([lam[i] for i in idx])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--squeal", default="build/squeal")
+    ap.add_argument("--scene", default="examples/pad/pad.yaml")
+    ap.add_argument("--fmax", type=float, nargs="+", default=[12000, 15000, 20000, 30000, 40000])
+    ap.add_argument("--np", type=int, default=1)
+    ap.add_argument("--full-np", type=int, default=1)
+    ap.add_argument("--extra", nargs=argparse.REMAINDER, default=[])
+    a = ap.parse_args()
+    tmp = tempfile.mkdtemp(prefix="reduction_report_")
+    base = [a.squeal, "-scene", a.scene, "-analyses", "stability", "-eq_mat_mumps_icntl_14", "200"] + a.extra
+    out, wall = run(base + ["-output", os.path.join(tmp, "full.h5")], a.full_np)
+    _, ref = unstable(os.path.join(tmp, "full.h5"))
+    n = re.search(r"(\d+) DOFs", out).group(1)
+    print("full model: %s DOFs, %d unstable eigenvalue(s), stability run %.2f s (wall, %d rank(s))" % (n, len(ref), wall, a.full_np))
+    for l in ref:
+        print("  sigma = %.6g 1/s, f = %.6g Hz" % (l.real, l.imag / (2 * np.pi)))
+    print("%9s %7s %6s %10s %10s %12s %12s" % ("fmax(Hz)", "N_red", "modes", "reduce(s)", "run(s)", "max rel err", "max |dsig|/|l|"))
+    for fm in a.fmax:
+        h5 = os.path.join(tmp, "red_%g.h5" % fm)
+        out, wall = run(base + ["-reduce_type", "craig_bampton", "-reduce_fmax", str(fm), "-output", h5], a.np)
+        m = re.search(r"-> (\d+) \((\d+) interface DOFs of the contact nodes \+ (\d+) fixed-interface", out)
+        t = re.search(r"time ([0-9.]+) s", out)
+        lam, _ = unstable(h5)
+        err = [np.min(np.abs(lam - r)) / abs(r) for r in ref]
+        dsig = [abs(lam[np.argmin(np.abs(lam - r))].real - r.real) / abs(r) for r in ref]
+        print("%9g %7s %6s %10s %10.2f %12.3e %12.3e" % (fm, m.group(1), m.group(3), t.group(1), wall, max(err), max(dsig)))
+
+
+if __name__ == "__main__":
+    main()

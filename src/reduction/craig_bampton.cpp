@@ -1,0 +1,456 @@
+#include "squeal/reduction/craig_bampton.h"
+#include "squeal/core/errors.h"
+#include "squeal/core/options.h"
+#include "squeal/core/sparse.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace squeal {
+
+namespace {
+
+using Dense = Eigen::Matrix<PetscReal, Eigen::Dynamic, Eigen::Dynamic>;
+
+// Every rank receives the whole (small) MPIDENSE/SEQDENSE matrix A.
+PetscErrorCode GatherDense(Mat A, Dense &out)
+{
+  MPI_Comm           comm;
+  PetscInt           m, n, rstart, rend, lda;
+  const PetscScalar *a;
+  PetscMPIInt        size;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectGetComm((PetscObject)A, &comm));
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(MatGetSize(A, &m, &n));
+  PetscCall(MatGetOwnershipRange(A, &rstart, &rend));
+  PetscCall(MatDenseGetLDA(A, &lda));
+  const PetscInt ml = rend - rstart;
+  // Local rows packed row-major, then gathered in rank order (= global row order).
+  std::vector<PetscReal> mine((size_t)ml * n);
+  PetscCall(MatDenseGetArrayRead(A, &a));
+  for (PetscInt i = 0; i < ml; ++i)
+    for (PetscInt j = 0; j < n; ++j) mine[(size_t)i * n + j] = PetscRealPart(a[i + (size_t)j * lda]);
+  PetscCall(MatDenseRestoreArrayRead(A, &a));
+  std::vector<int> counts(size), displs(size, 0);
+  const int        cnt = (int)(ml * n);
+  PetscCallMPI(MPI_Allgather(&cnt, 1, MPI_INT, counts.data(), 1, MPI_INT, comm));
+  for (int r = 1; r < size; ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<PetscReal> all((size_t)m * n);
+  PetscCallMPI(MPI_Allgatherv(mine.data(), cnt, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm));
+  out.resize(m, n);
+  for (PetscInt i = 0; i < m; ++i)
+    for (PetscInt j = 0; j < n; ++j) out(i, j) = all[(size_t)i * n + j];
+  PetscFunctionReturn(0);
+}
+
+// Every rank receives A(rows, rows) for a (small) list of global rows, as a dense matrix.
+PetscErrorCode GatherSubmatrix(Mat A, const std::vector<PetscInt> &rows, Dense &out)
+{
+  IS  is;
+  Mat *sub;
+  PetscFunctionBeginUser;
+  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)rows.size(), rows.data(), PETSC_COPY_VALUES, &is));
+  PetscCall(MatCreateSubMatrices(A, 1, &is, &is, MAT_INITIAL_MATRIX, &sub));
+  out = Dense::Zero(rows.size(), rows.size());
+  for (PetscInt i = 0; i < (PetscInt)rows.size(); ++i) {
+    PetscInt           nc;
+    const PetscInt    *cols;
+    const PetscScalar *vals;
+    PetscCall(MatGetRow(sub[0], i, &nc, &cols, &vals));
+    for (PetscInt k = 0; k < nc; ++k) out(i, cols[k]) = PetscRealPart(vals[k]);
+    PetscCall(MatRestoreRow(sub[0], i, &nc, &cols, &vals));
+  }
+  PetscCall(MatDestroySubMatrices(1, &sub));
+  PetscCall(ISDestroy(&is));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode GatherVec(Vec v, std::vector<PetscReal> &out)
+{
+  VecScatter         sc;
+  Vec                all;
+  const PetscScalar *a;
+  PetscInt           n;
+  PetscFunctionBeginUser;
+  PetscCall(VecScatterCreateToAll(v, &sc, &all));
+  PetscCall(VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetSize(all, &n));
+  PetscCall(VecGetArrayRead(all, &a));
+  out.assign(n, 0.0);
+  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(all, &a));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscCall(VecDestroy(&all));
+  PetscFunctionReturn(0);
+}
+
+// The reduced matrix, symmetrised, as an AIJ matrix on comm; entries below round-off of the
+// projection (relative to the geometric mean of their diagonal entries) are not stored, so the
+// exactly zero couplings of K_r (interface-modes block) stay zero.
+PetscErrorCode CreateReducedMat(MPI_Comm comm, const Dense &A, Mat *out)
+{
+  const PetscInt n = (PetscInt)A.rows();
+  PetscInt       nloc = PETSC_DECIDE, nglob = n, rstart = 0;
+  Triplets       t;
+  PetscFunctionBeginUser;
+  PetscCall(PetscSplitOwnership(comm, &nloc, &nglob));
+  PetscCallMPI(MPI_Scan(&nloc, &rstart, 1, MPIU_INT, MPI_SUM, comm));
+  rstart -= nloc;
+  for (PetscInt i = rstart; i < rstart + nloc; ++i)
+    for (PetscInt j = 0; j < n; ++j) {
+      const PetscReal v   = 0.5 * (A(i, j) + A(j, i));
+      const PetscReal ref = std::sqrt(std::abs(A(i, i) * A(j, j)));
+      if (i == j || std::abs(v) > 1e-13 * ref) t.Add(i, j, v);
+    }
+  PetscCall(MatCreateFromTriplets(comm, nloc, nloc, n, n, t, out));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode CraigBampton::SetOptionsPrefix(const char *prefix)
+{
+  PetscFunctionBeginUser;
+  prefix_ = prefix ? prefix : "";
+  PetscFunctionReturn(0);
+}
+PetscErrorCode CraigBampton::SetFMax(PetscReal fmax)
+{
+  PetscFunctionBeginUser;
+  fmax_ = fmax;
+  PetscFunctionReturn(0);
+}
+PetscErrorCode CraigBampton::SetNModes(PetscInt nmodes)
+{
+  PetscFunctionBeginUser;
+  nmodes_ = nmodes;
+  PetscFunctionReturn(0);
+}
+PetscErrorCode CraigBampton::SetFBand(PetscReal fband)
+{
+  PetscFunctionBeginUser;
+  fband_ = fband;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
+{
+  const char *const types[] = {"none", "craig_bampton"};
+  PetscInt          type    = 0;
+  OptionChecks      checks;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm_, prefix_.c_str(), "Craig-Bampton model reduction", "CraigBampton");
+  PetscCall(PetscOptionsEList("-type", "Model reduction: none or craig_bampton (contact DOFs + fixed-interface modes)",
+                              "CraigBampton", types, 2, types[type], &type, nullptr));
+  SquealOptionsReal("-fmax", "Cut-off frequency of the fixed-interface modes (Hz); 0: use -reduce_nmodes only", "CraigBampton",
+                    &fmax_, Range::NonNegative(), checks);
+  PetscCall(PetscOptionsInt("-nmodes", "Number of fixed-interface modes (-1: all below -reduce_fmax)", "CraigBampton", nmodes_,
+                            &nmodes_, nullptr));
+  SquealOptionsReal("-fband", "Top of the frequency band of interest (Hz); a cut-off below it is refused", "CraigBampton", &fband_,
+                    Range::NonNegative(), checks);
+  PetscCall(PetscOptionsInt("-max_modes", "Upper bound on the modes computed for -reduce_fmax", "CraigBampton", max_modes_,
+                            &max_modes_, nullptr));
+  PetscOptionsEnd();
+  PetscCall(checks.Run(comm_));
+  const std::string pre = OptionName(prefix_.c_str(), "");
+  if (type == 1) {
+    PetscCheck(fmax_ > 0 || nmodes_ >= 0, comm_, kErrInput,
+               "%stype craig_bampton needs a cut-off: give %sfmax (Hz) or %snmodes", pre.c_str(), pre.c_str(), pre.c_str());
+    PetscCheck(fband_ <= 0 || fmax_ <= 0 || fmax_ >= fband_, comm_, kErrInput,
+               "cut-off %sfmax = %g Hz is below the band of interest (%sfband = %g Hz): raise %sfmax to 1.5-2 x %g Hz",
+               pre.c_str(), (double)fmax_, pre.c_str(), (double)fband_, pre.c_str(), (double)fband_);
+    PetscCheck(max_modes_ >= 1, comm_, kErrInput, "option %smax_modes = %" PetscInt_FMT ": expected >= 1", pre.c_str(), max_modes_);
+  }
+  if (enabled) *enabled = type == 1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
+{
+  MPI_Comm       comm = full.comm();
+  PetscLogDouble t0, t1, t2, t3;
+  PetscInt       N, rstart, rend;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t0));
+  info_ = ReductionInfo();
+  PetscCall(MatGetSize(full.K, &N, nullptr));
+  PetscCall(MatGetOwnershipRange(full.K, &rstart, &rend));
+
+  // Interface in contact order: point c, its nodes, their x, y, z DOFs.
+  std::vector<PetscInt> iface;
+  for (const ContactPoint &p : full.contacts.points)
+    for (const ContactNode &nd : p.nodes)
+      for (int k = 0; k < 3; ++k) iface.push_back(nd.dofs[k]);
+  const PetscInt        nB = (PetscInt)iface.size();
+  std::vector<PetscInt> where(N, -1); // full DOF -> position in the interface
+  for (PetscInt k = 0; k < nB; ++k) {
+    PetscCheck(iface[k] >= 0 && iface[k] < N, comm, kErrInput,
+               "reduction: contact DOF %" PetscInt_FMT " is outside the model's %" PetscInt_FMT " DOFs", iface[k], N);
+    PetscCheck(where[iface[k]] < 0, comm, kErrInput,
+               "reduction: DOF %" PetscInt_FMT " belongs to two contact nodes; the interface must list each DOF once", iface[k]);
+    where[iface[k]] = k;
+  }
+  const PetscInt nI = N - nB;
+  PetscCheck(nI > 0, comm, kErrInput, "reduction: every DOF is a contact DOF, nothing to reduce (drop -reduce_type)");
+  std::vector<PetscInt> Bsorted(iface), Iloc, Bloc;
+  std::sort(Bsorted.begin(), Bsorted.end());
+  for (PetscInt i = rstart; i < rend; ++i) (where[i] < 0 ? Iloc : Bloc).push_back(i);
+  Handle<IS> isI, isB;
+  PetscCall(ISCreateGeneral(comm, (PetscInt)Iloc.size(), Iloc.data(), PETSC_COPY_VALUES, isI.out()));
+  PetscCall(ISCreateGeneral(comm, (PetscInt)Bloc.size(), Bloc.data(), PETSC_COPY_VALUES, isB.out()));
+  info_.N           = N;
+  info_.n_interface = nB;
+
+  // Constraint modes Psi = -K_II^{-1} K_IB: one Cholesky factorisation (MUMPS), nB right-hand sides.
+  MatH Kii, Kib, Fct, R, Psi;
+  PetscCall(MatCreateSubMatrix(full.K, isI, isI, MAT_INITIAL_MATRIX, Kii.out()));
+  PetscCall(MatCreateSubMatrix(full.K, isI, isB, MAT_INITIAL_MATRIX, Kib.out()));
+  {
+    MatFactorInfo     finfo;
+    MatFactorError    ferr;
+    PetscCall(MatFactorInfoInitialize(&finfo));
+    PetscCall(MatGetFactor(Kii, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, Fct.out()));
+    PetscCall(MatCholeskyFactorSymbolic(Fct, Kii, nullptr, &finfo));
+    PetscCall(MatCholeskyFactorNumeric(Fct, Kii, &finfo));
+    PetscCall(MatFactorGetError(Fct, &ferr));
+    PetscCheck(ferr == MAT_FACTOR_NOERROR, comm, kErrInput,
+               "reduction: K_II (stiffness with every contact DOF held) cannot be factorised (MUMPS error %d): part of the "
+               "structure is not held by the contact nodes or supports; add supports (e.g. -model_support_kn/-model_support_kt) "
+               "or contact nodes there",
+               (int)ferr);
+  }
+  PetscCall(MatConvert(Kib, MATDENSE, MAT_INITIAL_MATRIX, R.out()));
+  PetscCall(MatScale(R, -1.0));
+  PetscCall(MatDuplicate(R, MAT_DO_NOT_COPY_VALUES, Psi.out()));
+  PetscCall(MatMatSolve(Fct, R, Psi));
+  {
+    PetscReal nrm;
+    PetscCall(MatNorm(Psi, NORM_FROBENIUS, &nrm));
+    PetscCheck(!PetscIsInfOrNanReal(nrm) && nrm < 1e12 * std::sqrt((PetscReal)nB), comm, kErrInput,
+               "reduction: K_II is singular or nearly so (constraint modes of norm %g): part of the structure is not held by "
+               "the contact nodes or supports; add supports (e.g. -model_support_kn/-model_support_kt)",
+               (double)nrm);
+  }
+  R.reset();
+  Fct.reset();
+  PetscCall(PetscTime(&t1));
+
+  // Fixed-interface modes of (K_II, M_II) up to the cut-off, shift-and-invert about 0.
+  MatH Mii;
+  PetscCall(MatCreateSubMatrix(full.M, isI, isI, MAT_INITIAL_MATRIX, Mii.out()));
+  EPSH        eps;
+  std::vector<PetscReal> lam;
+  PetscInt    nconv = 0;
+  const PetscReal w2max = fmax_ > 0 ? std::pow(2 * PETSC_PI * fmax_, 2) : PETSC_INFINITY;
+  if (nmodes_ != 0) {
+    ST  st;
+    KSP ksp;
+    PC  pc;
+    PetscCall(EPSCreate(comm, eps.out()));
+    PetscCall(EPSSetOptionsPrefix(eps, prefix_.c_str()));
+    PetscCall(EPSSetOperators(eps, Kii, Mii));
+    PetscCall(EPSSetProblemType(eps, EPS_GHEP));
+    PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
+    PetscCall(EPSSetTarget(eps, 0.0));
+    PetscCall(EPSSetWhichEigenpairs(eps, EPS_TARGET_MAGNITUDE));
+    PetscCall(EPSSetTolerances(eps, 1e-10, PETSC_DEFAULT));
+    PetscCall(EPSGetST(eps, &st));
+    PetscCall(STSetType(st, STSINVERT));
+    PetscCall(STGetKSP(st, &ksp));
+    PetscCall(KSPSetType(ksp, KSPPREONLY));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PCSetType(pc, PCCHOLESKY));
+    PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    PetscInt nev = nmodes_ > 0 ? nmodes_ : 24;
+    nev          = PetscMin(nev, PetscMin(max_modes_, nI));
+    PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+    PetscCall(EPSSetFromOptions(eps));
+    for (;;) {
+      PetscCall(EPSSolve(eps));
+      PetscCall(EPSGetConverged(eps, &nconv));
+      lam.resize(nconv);
+      for (PetscInt i = 0; i < nconv; ++i) {
+        PetscScalar kr, ki;
+        PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
+        lam[i] = PetscRealPart(kr);
+      }
+      // With a frequency cut-off, grow the request until a converged mode lies above it.
+      const bool above = nconv > 0 && *std::max_element(lam.begin(), lam.end()) > w2max;
+      if (nmodes_ > 0 || fmax_ <= 0 || above || nev >= PetscMin(max_modes_, nI)) break;
+      nev = PetscMin(2 * nev, PetscMin(max_modes_, nI));
+      PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+    }
+  }
+  std::vector<PetscInt> keep(nconv);
+  std::iota(keep.begin(), keep.end(), 0);
+  std::sort(keep.begin(), keep.end(), [&](PetscInt a, PetscInt b) { return lam[a] < lam[b]; });
+  while (!keep.empty() && lam[keep.back()] > w2max) keep.pop_back();
+  if (nmodes_ > 0 && (PetscInt)keep.size() > nmodes_) keep.resize(nmodes_);
+  if (fmax_ > 0 && nmodes_ < 0 && nconv > 0 && *std::max_element(lam.begin(), lam.end()) <= w2max)
+    PetscCall(PetscPrintf(comm,
+                          "reduction: warning: %" PetscInt_FMT " modes (-%smax_modes) do not reach the cut-off %g Hz; raise "
+                          "-%smax_modes\n",
+                          (PetscInt)keep.size(), prefix_.c_str(), (double)fmax_, prefix_.c_str()));
+  const PetscInt m  = (PetscInt)keep.size();
+  const PetscInt n2 = nB + m;
+  info_.n_modes     = m;
+  for (PetscInt k : keep) info_.freq.push_back(std::sqrt(PetscMax(lam[k], 0.0)) / (2 * PETSC_PI));
+
+  // W = [Psi Phi] (interior rows), Phi M_II-normalised.
+  MatH     W;
+  PetscInt nIloc;
+  PetscCall(MatGetLocalSize(Kii, &nIloc, nullptr));
+  PetscCall(MatCreateDense(comm, nIloc, PETSC_DECIDE, nI, n2, nullptr, W.out()));
+  {
+    PetscScalar       *w;
+    const PetscScalar *ps;
+    PetscInt           ldw, ldp;
+    PetscCall(MatDenseGetLDA(W, &ldw));
+    PetscCall(MatDenseGetLDA(Psi, &ldp));
+    PetscCall(MatDenseGetArrayWrite(W, &w));
+    PetscCall(MatDenseGetArrayRead(Psi, &ps));
+    for (PetscInt j = 0; j < nB; ++j)
+      for (PetscInt i = 0; i < nIloc; ++i) w[i + (size_t)j * ldw] = ps[i + (size_t)j * ldp];
+    PetscCall(MatDenseRestoreArrayRead(Psi, &ps));
+    PetscCall(MatDenseRestoreArrayWrite(W, &w));
+  }
+  Psi.reset();
+  {
+    VecH x, y;
+    PetscCall(MatCreateVecs(Kii, x.out(), y.out()));
+    for (PetscInt k = 0; k < m; ++k) {
+      Vec       col;
+      PetscReal nrm2;
+      PetscCall(EPSGetEigenvector(eps, keep[k], x, nullptr));
+      PetscCall(MatMult(Mii, x, y));
+      PetscCall(VecDot(x, y, &nrm2));
+      // Sign fixed by the entry of largest modulus, so that any rank count gives the same basis.
+      PetscReal xmax, xmin;
+      PetscCall(VecMax(x, nullptr, &xmax));
+      PetscCall(VecMin(x, nullptr, &xmin));
+      PetscCall(VecScale(x, (-xmin > xmax ? -1.0 : 1.0) / std::sqrt(PetscRealPart(nrm2))));
+      PetscCall(MatDenseGetColumnVecWrite(W, nB + k, &col));
+      PetscCall(VecCopy(x, col));
+      PetscCall(MatDenseRestoreColumnVecWrite(W, nB + k, &col));
+    }
+  }
+  PetscCall(MatAssemblyBegin(W, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(W, MAT_FINAL_ASSEMBLY));
+  eps.reset();
+  PetscCall(PetscTime(&t2));
+
+  // A_r = T^T A T in the order [B sorted by global index, modes], then permuted to contact order:
+  //   P = W^T A_II W,  S = A_BI W,  A_r = P + [A_BB + S_B + S_B^T, S_M; S_M^T, 0].
+  std::vector<PetscInt> perm(n2); // reduced position (contact order) of sorted position
+  for (PetscInt k = 0; k < nB; ++k) perm[k] = where[Bsorted[k]];
+  for (PetscInt k = 0; k < m; ++k) perm[nB + k] = nB + k;
+  // For K the projection is known in closed form (Psi^T (K_IB + K_II Psi) = 0, Phi^T K_II Phi =
+  // Omega^2): K_r = [K_BB + K_BI Psi, 0; 0, Omega^2], which saves the dense product W^T K_II W.
+  auto project = [&](Mat A, bool stiffness, Mat *out) -> PetscErrorCode {
+    MatH  Aii, Aib, G, P, S;
+    Dense Pd, Sd, Abb;
+    PetscFunctionBeginUser;
+    PetscCall(MatCreateSubMatrix(A, isI, isI, MAT_INITIAL_MATRIX, Aii.out()));
+    PetscCall(MatCreateSubMatrix(A, isI, isB, MAT_INITIAL_MATRIX, Aib.out()));
+    PetscCall(MatTransposeMatMult(Aib, W, MAT_INITIAL_MATRIX, PETSC_DEFAULT, S.out()));
+    PetscCall(GatherDense(S, Sd));
+    PetscCall(GatherSubmatrix(A, Bsorted, Abb));
+    Dense Ar;
+    if (stiffness) {
+      Ar                         = Dense::Zero(n2, n2);
+      Ar.topLeftCorner(nB, nB)   = Abb + 0.5 * (Sd.leftCols(nB) + Sd.leftCols(nB).transpose());
+      for (PetscInt k = 0; k < m; ++k) Ar(nB + k, nB + k) = lam[keep[k]];
+    } else {
+      PetscCall(MatMatMult(Aii, W, MAT_INITIAL_MATRIX, PETSC_DEFAULT, G.out()));
+      PetscCall(MatTransposeMatMult(W, G, MAT_INITIAL_MATRIX, PETSC_DEFAULT, P.out()));
+      G.reset();
+      PetscCall(GatherDense(P, Pd));
+      Ar = Pd;
+      Ar.topLeftCorner(nB, nB) += Abb + Sd.leftCols(nB) + Sd.leftCols(nB).transpose();
+      Ar.topRightCorner(nB, m) += Sd.rightCols(m);
+      Ar.bottomLeftCorner(m, nB) += Sd.rightCols(m).transpose();
+    }
+    Dense Ap(n2, n2);
+    for (PetscInt i = 0; i < n2; ++i)
+      for (PetscInt j = 0; j < n2; ++j) Ap(perm[i], perm[j]) = Ar(i, j);
+    PetscCall(CreateReducedMat(comm, Ap, out));
+    PetscFunctionReturn(0);
+  };
+  PetscCall(project(full.M, false, red.M.out()));
+  PetscCall(project(full.K, true, red.K.out()));
+  if (full.C) PetscCall(project(full.C, false, red.C.out()));
+  else red.C.reset();
+
+  // F_r = T^T F = [F_B + Psi^T F_I; Phi^T F_I].
+  {
+    Vec                    FI;
+    VecH                   t;
+    std::vector<PetscReal> Ffull, tw, Fr(n2, 0.0);
+    PetscCall(VecGetSubVector(full.F, isI, &FI));
+    PetscCall(MatCreateVecs(W, t.out(), nullptr));
+    PetscCall(MatMultTranspose(W, FI, t));
+    PetscCall(VecRestoreSubVector(full.F, isI, &FI));
+    PetscCall(GatherVec(t, tw));
+    PetscCall(GatherVec(full.F, Ffull));
+    for (PetscInt k = 0; k < nB; ++k) Fr[perm[k]] = Ffull[Bsorted[k]] + tw[k];
+    for (PetscInt k = 0; k < m; ++k) Fr[nB + k] = tw[nB + k];
+    PetscCall(MatCreateVecs(red.K, nullptr, red.F.out()));
+    PetscInt lo, hi;
+    PetscCall(VecGetOwnershipRange(red.F, &lo, &hi));
+    for (PetscInt i = lo; i < hi; ++i) PetscCall(VecSetValue(red.F, i, Fr[i], INSERT_VALUES));
+    PetscCall(VecAssemblyBegin(red.F));
+    PetscCall(VecAssemblyEnd(red.F));
+  }
+
+  // The contact set follows its DOFs to the first 3 n_c positions; frames and speeds unchanged.
+  red.contacts = full.contacts;
+  PetscInt next = 0;
+  for (ContactPoint &p : red.contacts.points)
+    for (ContactNode &nd : p.nodes)
+      for (int k = 0; k < 3; ++k) {
+        PetscCheck(where[nd.dofs[k]] == next, comm, PETSC_ERR_PLIB, "reduction: contact DOF %" PetscInt_FMT " missing from the basis",
+                   nd.dofs[k]);
+        nd.dofs[k] = next++;
+      }
+  char name[64];
+  PetscCall(PetscSNPrintf(name, sizeof(name), " + CB(%" PetscInt_FMT " + %" PetscInt_FMT ")", nB, m));
+  red.name = full.name + name;
+  PetscCall(red.Validate());
+  PetscCall(PetscTime(&t3));
+  info_.time_static  = t1 - t0;
+  info_.time_modes   = t2 - t1;
+  info_.time_project = t3 - t2;
+  info_.time_total   = t3 - t0;
+  PetscLogDouble mem = 0;
+  PetscCall(PetscMemoryGetCurrentUsage(&mem));
+  PetscCallMPI(MPI_Allreduce(&mem, &info_.mem_peak, 1, MPI_DOUBLE, MPI_SUM, comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CraigBampton::View(PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii) PetscFunctionReturn(0);
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "Craig-Bampton reduction: %" PetscInt_FMT " DOFs -> %" PetscInt_FMT " (%" PetscInt_FMT
+                                   " interface DOFs of the contact nodes + %" PetscInt_FMT " fixed-interface modes",
+                                   info_.N, info_.n_interface + info_.n_modes, info_.n_interface, info_.n_modes));
+  if (info_.n_modes > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, ", %.1f to %.1f Hz", (double)info_.freq.front(), (double)info_.freq.back()));
+  PetscCall(PetscViewerASCIIPrintf(viewer, ")\n"));
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "  time %.3f s (constraint modes %.3f s, fixed-interface modes %.3f s, projection %.3f s), "
+                                   "resident memory %.1f MB\n",
+                                   (double)info_.time_total, (double)info_.time_static, (double)info_.time_modes,
+                                   (double)info_.time_project, (double)(info_.mem_peak / 1048576.0)));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
