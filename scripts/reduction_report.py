@@ -7,7 +7,7 @@ time, stability time, and the largest relative error of the unstable eigenvalues
 model (each matched to the nearest reduced eigenvalue).
 
   /usr/bin/python3 scripts/reduction_report.py --squeal build/squeal --scene examples/pad/pad.yaml \
-      --fmax 12000 15000 20000 30000 40000 [--np 2] [--no-full]
+      --fmax 12000 15000 20000 30000 40000 [--band 10000] [--np 2]
 """
 import argparse
 import os
@@ -45,6 +45,7 @@ def main():
     ap.add_argument("--squeal", default="build/squeal")
     ap.add_argument("--scene", default="examples/pad/pad.yaml")
     ap.add_argument("--fmax", type=float, nargs="+", default=[12000, 15000, 20000, 30000, 40000])
+    ap.add_argument("--band", type=float, default=0, help="only unstable eigenvalues of the full model below this frequency (Hz)")
     ap.add_argument("--np", type=int, default=1)
     ap.add_argument("--full-np", type=int, default=1)
     ap.add_argument("--extra", nargs=argparse.REMAINDER, default=[])
@@ -53,6 +54,8 @@ def main():
     base = [a.squeal, "-scene", a.scene, "-analyses", "stability", "-eq_mat_mumps_icntl_14", "200"] + a.extra
     out, wall = run(base + ["-output", os.path.join(tmp, "full.h5")], a.full_np)
     _, ref = unstable(os.path.join(tmp, "full.h5"))
+    if a.band > 0:
+        ref = np.array([l for l in ref if l.imag / (2 * np.pi) <= a.band])
     n = re.search(r"(\d+) DOFs", out).group(1)
     print("full model: %s DOFs, %d unstable eigenvalue(s), stability run %.2f s (wall, %d rank(s))" % (n, len(ref), wall, a.full_np))
     for l in ref:
