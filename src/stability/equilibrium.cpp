@@ -86,6 +86,28 @@ PetscErrorCode EquilibriumSolver::SolveBordered(const Model &model, const std::v
   // A new matrix every pass, and its size changes when points are released: start afresh.
   PetscCall(KSPReset(ksp_));
   PetscCall(KSPSetOperators(ksp_, A, A));
+  {
+    // The multiplier block is zero, so MUMPS delays pivots that its structural analysis did not
+    // foresee; on a reduced (dense) model the whole matrix is one front and the default 20 % extra
+    // workspace runs out (INFOG(1) = -9 on the 232 x 232 reduced small pad). 200 % unless the user
+    // sets -eq_mat_mumps_icntl_14; the matrix is small wherever it is dense.
+    PC        pc;
+    PetscBool lu, mumps = PETSC_FALSE, set;
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCLU, &lu));
+    if (lu) {
+      MatSolverType st;
+      PetscCall(PCFactorGetMatSolverType(pc, &st));
+      if (st) PetscCall(PetscStrcmp(st, MATSOLVERMUMPS, &mumps));
+    }
+    PetscCall(PetscOptionsHasName(nullptr, prefix_.c_str(), "-mat_mumps_icntl_14", &set));
+    if (mumps && !set) {
+      Mat Fm;
+      PetscCall(PCFactorSetUpMatSolverType(pc));
+      PetscCall(PCFactorGetMatrix(pc, &Fm));
+      PetscCall(MatMumpsSetIcntl(Fm, 14, 200));
+    }
+  }
   PetscCall(KSPSolve(ksp_, b, x));
   KSPConvergedReason reason;
   PetscCall(KSPGetConvergedReason(ksp_, &reason));
