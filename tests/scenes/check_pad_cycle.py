@@ -5,7 +5,9 @@ eigenvalue and the transient itself (no pasted numbers of the code under test):
   - the transient saturates: the peak-to-peak of the largest contact DOF, per period of the
     dominant frequency, is steady over the last 40 % (relative spread and drift < --ptp-spread);
   - it oscillates at the unstable mode: dominant frequency within --freq-tol of the linear one;
-  - contact separates part of the time (the cycle is non-smooth);
+  - contact separates part of the time (the motion is non-smooth);
+  - the motion is not a period-1, 2 or 3 cycle: the whole state (U - U_e, dU / omega) returns
+    only within > --min-return (relative, mean over the last 20 %) after 1, 2 or 3 periods;
   - the energy estimate's amplitude q0 is more than --q0-ratio times the cycle's largest in-plane
     contact amplitude: the shooting start from the energy estimate is that far from the cycle.
 The last check asserts the diagnosis of why shooting from the energy estimate fails on this scene;
@@ -24,6 +26,7 @@ def main():
     ap.add_argument("--ptp-spread", type=float, default=0.1)
     ap.add_argument("--freq-tol", type=float, default=0.02)
     ap.add_argument("--q0-ratio", type=float, default=10.0)
+    ap.add_argument("--min-return", type=float, default=0.01)
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
@@ -41,6 +44,7 @@ def main():
         f_lin = ev[mode, 1] / (2 * np.pi)
         t = f["transient/t"][()]
         U = f["transient/U"][()]
+        V = f["transient/V"][()]
         Ue = f["equilibrium/U"][()]
         sep = float(f["transient"].attrs["fraction_separated"])
         ncontact = f["equilibrium/N"].shape[0]
@@ -60,6 +64,21 @@ def main():
     spread = np.std(ptp) / np.mean(ptp)
     half = len(ptp) // 2
     drift = abs(np.mean(ptp[half:]) / np.mean(ptp[:half]) - 1)
+    # Return error after k periods of the whole state (U - U_e, dU / omega), last 20 %, at the
+    # best fractional lag near k / f_c (linear interpolation between records).
+    om = 2 * np.pi * f_c
+    Z = np.hstack([U[int(0.8 * n):] - Ue, V[int(0.8 * n):] / om])
+    nz = np.linalg.norm(Z, axis=1).mean()
+    m = len(Z) - int(4 / (f_c * dt)) - 4
+    ret = []
+    for k in (1, 2, 3):
+        best = np.inf
+        for lag in np.arange(k / (f_c * dt) - 2, k / (f_c * dt) + 2, 0.05):
+            i = int(np.floor(lag))
+            al = lag - i
+            Zl = (1 - al) * Z[i:i + m] + al * Z[i + 1:i + 1 + m]
+            best = min(best, np.linalg.norm(Zl - Z[:m], axis=1).mean() / nz)
+        ret.append(best)
     P = X.reshape(len(X), ncontact, 3)
     inplane = np.max(np.hypot(np.ptp(P[:, :, 0], axis=0), np.ptp(P[:, :, 1], axis=0)) / 2)
     print(f"check_pad_cycle: {len(unstable)} unstable mode(s), energy mode {mode} at {f_lin:.4f} Hz")
@@ -68,6 +87,7 @@ def main():
           f"(T = {1 / f_c:.7e} s, {f_c / f_lin - 1:+.3e} from linear); separated {sep:.3f}")
     print(f"  largest in-plane contact amplitude {inplane:.4e} m; energy estimate q0 = {q0:.4e} m "
           f"({q0 / inplane:.1f} x)")
+    print("  return error of the state after 1, 2, 3 periods: " + ", ".join(f"{e:.3e}" for e in ret))
     if spread > a.ptp_spread or drift > a.ptp_spread:
         fails.append(f"transient not saturated: spread {spread:.3e}, drift {drift:.3e} > {a.ptp_spread}")
     if abs(f_c / f_lin - 1) > a.freq_tol:
@@ -77,6 +97,9 @@ def main():
     if q0 < a.q0_ratio * inplane:
         fails.append(f"energy estimate q0 {q0:.4e} within {a.q0_ratio} x of the cycle amplitude {inplane:.4e}: "
                      "the diagnosis no longer holds, try shooting from the energy estimate")
+    if min(ret) < a.min_return:
+        fails.append(f"the transient returns within {min(ret):.3e} < {a.min_return} after 1-3 periods: it is a cycle, "
+                     "shoot from it")
     if fails:
         sys.exit("check_pad_cycle: " + "; ".join(fails))
     print("check_pad_cycle: OK")
