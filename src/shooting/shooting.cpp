@@ -111,12 +111,13 @@ struct ShootingCallbacks {
     PetscInt nl;
     PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
     PetscCall(VecGetLocalSize(f, &nl));
-    if (nl > 2 * s->nloc_) {
-      PetscScalar *a;
-      PetscCall(VecGetArray(f, &a));
-      a[2 * s->nloc_] = 0;
-      PetscCall(VecRestoreArray(f, &a));
-    }
+    // Get/restore on every rank, not only on the one that owns the phase row: restoring bumps the
+    // Vec's state, and a rank whose state did not move would keep its cached norm and skip the
+    // reduction of the next VecNorm that the other rank enters (a deadlock under MPI).
+    PetscScalar *a;
+    PetscCall(VecGetArray(f, &a));
+    if (nl > 2 * s->nloc_) a[2 * s->nloc_] = 0;
+    PetscCall(VecRestoreArray(f, &a));
     PetscCall(VecCopy(x, s->xbase_));
     PetscCall(VecCopy(f, s->fbase_));
     PetscFunctionReturn(0);
