@@ -5,7 +5,7 @@ set -euo pipefail
 PACKAGES=(
   g++ cmake make pkg-config
   petsc-dev slepc-dev libhdf5-openmpi-dev libeigen3-dev libopenmpi-dev openmpi-bin
-  libgtest-dev libbenchmark-dev
+  libgtest-dev libbenchmark-dev libyaml-dev
   python3 python3-numpy python3-h5py python3-matplotlib
 )
 
