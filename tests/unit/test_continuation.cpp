@@ -72,15 +72,6 @@ PetscErrorCode RunBranch(Problem &pr, Continuation &c, ContinuationResult &res)
   PetscFunctionReturn(0);
 }
 
-// One rank only: on 2 ranks the first test took 114 s (against 1.5 s), which the np2 suite's
-// time budget does not allow; the continuation itself runs on any rank count.
-bool MultiRank()
-{
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  return size > 1;
-}
-
 const ContinuationEvent *Find(const ContinuationResult &r, const char *type)
 {
   for (auto &e : r.events)
@@ -92,7 +83,6 @@ const ContinuationEvent *Find(const ContinuationResult &r, const char *type)
 
 TEST(Continuation, PointsAgreeWithStandAloneShootingAndTheTransient)
 {
-  if (MultiRank()) GTEST_SKIP() << "single-rank test (time)";
   // Tight tolerances: the continuation's points and the stand-alone runs (from the energy
   // estimate at each mu, a different start) must then agree on the period to 1e-8.
   Problem pr(3.0, 0.5, 1e-10);
@@ -133,7 +123,6 @@ TEST(Continuation, PointsAgreeWithStandAloneShootingAndTheTransient)
 
 TEST(Continuation, ThreeDofBranchesFromTheHopfPointToMu06WithTheirRegimeChanges)
 {
-  if (MultiRank()) GTEST_SKIP() << "single-rank test (time)";
   struct Case {
     PetscReal   V;
     const char *event; // the regime change along the branch from mu_c
@@ -176,7 +165,6 @@ TEST(Continuation, ThreeDofBranchesFromTheHopfPointToMu06WithTheirRegimeChanges)
 
 TEST(Continuation, AFailedStepHalvesTheStepAndKeepsTheBranch)
 {
-  if (MultiRank()) GTEST_SKIP() << "single-rank test (time)";
   Problem pr(0.75, 0.5);
   ASSERT_EQ(pr.err, 0);
   Continuation c(PETSC_COMM_WORLD);
