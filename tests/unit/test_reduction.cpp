@@ -216,6 +216,50 @@ TEST(Reduction, DistributedReductionMatchesTheSerialOne)
   EXPECT_NEAR(f, f1, 1e-12 * f1);
 }
 
+TEST(Reduction, RayleighShortcutEqualsTheProjectionOfC)
+{
+  // The pad's C = b K (+ a M): reduced as a M_r + b K_r by default, against the projection
+  // T^T C T of the general path. A C that is not Rayleigh must not take the shortcut.
+  PadParams p = SmallPad();
+  p.ray_a     = 30.0; // both terms, so the fit of a and b is exercised
+  Model full;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  auto reduce = [&](const Model &m, bool shortcut, Model &red, ReductionInfo &info) {
+    CraigBampton cb(m.comm());
+    ASSERT_EQ(cb.SetFMax(30000), 0);
+    ASSERT_EQ(cb.SetRayleighShortcut(shortcut), 0);
+    ASSERT_EQ(cb.Reduce(m, red), 0);
+    info = cb.Info();
+  };
+  Model         a, b;
+  ReductionInfo ia, ib;
+  reduce(full, true, a, ia);
+  reduce(full, false, b, ib);
+  EXPECT_TRUE(ia.rayleigh);
+  EXPECT_FALSE(ib.rayleigh);
+  ASSERT_EQ(ia.n_modes, ib.n_modes);
+  MatH      D;
+  PetscReal nd, nc;
+  ASSERT_EQ(MatDuplicate(b.C, MAT_COPY_VALUES, D.out()), 0);
+  ASSERT_EQ(MatAXPY(D, -1.0, a.C, DIFFERENT_NONZERO_PATTERN), 0);
+  ASSERT_EQ(MatNorm(D, NORM_FROBENIUS, &nd), 0);
+  ASSERT_EQ(MatNorm(b.C, NORM_FROBENIUS, &nc), 0);
+  EXPECT_LT(nd, 1e-12 * nc);
+
+  // C + a small extra dashpot on one DOF: no longer a M + b K, so the projection is used.
+  Model    other;
+  PetscInt lo, hi;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, other), 0);
+  ASSERT_EQ(MatGetOwnershipRange(other.C, &lo, &hi), 0);
+  if (lo == 0) ASSERT_EQ(MatSetValue(other.C, 0, 0, 1e-3, ADD_VALUES), 0);
+  ASSERT_EQ(MatAssemblyBegin(other.C, MAT_FINAL_ASSEMBLY), 0);
+  ASSERT_EQ(MatAssemblyEnd(other.C, MAT_FINAL_ASSEMBLY), 0);
+  Model         c;
+  ReductionInfo ic;
+  reduce(other, true, c, ic);
+  EXPECT_FALSE(ic.rayleigh);
+}
+
 TEST(Reduction, ExportedReducedModelReadsBackIdentically)
 {
   PadParams p = SmallPad();

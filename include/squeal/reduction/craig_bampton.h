@@ -17,8 +17,13 @@
 // reads it back). Exact for static loads on the interface; the error on the eigenvalues in a band
 // falls as fmax grows above it (the usual rule: fmax >= 1.5-2 x the top frequency of interest).
 //
-// Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_view,
-// and the eigensolver under -reduce_eps_* / -reduce_st_*.
+// Cost (N DOFs, n = 3 n_c + m): one MUMPS Cholesky of K_II shared by the eigensolver and the
+// constraint modes, 3 n_c right-hand sides, and one symmetric product W^T (M_II W) of ~n^2 N flops
+// (Eigen kernels on each rank's rows, summed); K_r has a closed form and Rayleigh C = a M + b K
+// is reduced as a M_r + b K_r, so C costs a second product only when it is not Rayleigh.
+// Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
+// and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_* (e.g.
+// -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves).
 #pragma once
 
 #include "squeal/core/handle.h"
@@ -32,7 +37,8 @@ namespace squeal {
 struct ReductionInfo {
   PetscInt               N = 0, n_interface = 0, n_modes = 0;
   std::vector<PetscReal> freq;                // Hz, fixed-interface modes kept
-  PetscReal              time_modes = 0, time_static = 0, time_project = 0, time_total = 0; // s
+  PetscReal              time_factor = 0, time_modes = 0, time_static = 0, time_project = 0, time_total = 0; // s
+  bool                   rayleigh = false; // C detected as a M + b K and projected as a M_r + b K_r
   PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
 };
 
@@ -43,6 +49,9 @@ public:
   PetscErrorCode SetFMax(PetscReal fmax);     // Hz; <= 0: no frequency cut-off
   PetscErrorCode SetNModes(PetscInt nmodes);  // < 0: no count limit
   PetscErrorCode SetFBand(PetscReal fband);   // Hz; > 0: refuse fmax below it
+  // true (default): a C found equal to a M + b K (to 1e-12) is reduced as a M_r + b K_r, saving one
+  // dense product; false: C is always projected (-reduce_rayleigh).
+  PetscErrorCode SetRayleighShortcut(bool on);
   // -reduce_type, -reduce_fmax, -reduce_nmodes, -reduce_fband; *enabled tells whether
   // -reduce_type asks for a reduction.
   PetscErrorCode SetFromOptions(bool *enabled = nullptr);
@@ -58,6 +67,7 @@ private:
   PetscInt      nmodes_ = -1;
   PetscReal     fband_  = 0;
   PetscInt      max_modes_ = 400;
+  PetscBool     rayleigh_  = PETSC_TRUE;
   ReductionInfo info_;
 };
 
