@@ -297,6 +297,7 @@ const char *TrendName(Trend t)
   case Trend::Aliased: return "aliased";
   case Trend::TooShort: return "too few cycles";
   case Trend::NoOscillation: return "no oscillation";
+  case Trend::Irregular: return "irregular";
   }
   return "?";
 }
@@ -307,75 +308,261 @@ PetscReal TransientAnalysis::RecordBytes(PetscInt N, PetscInt nc)
   return (PetscReal)((1 + 2 * N + 3 * nc + 4) * sizeof(PetscReal) + nc * sizeof(PetscInt));
 }
 
+namespace {
+
+// Cubic Hermite interpolant of one record interval of length h from the values and the recorded
+// velocities: p(s) = x0 + h v0 s + b s^2 + c s^3, s in [0, 1]. Its error is O(h^4): a clean
+// cycle's crossing times and extrema come out far below the record spacing.
+struct Hermite {
+  PetscReal x0, hv0, b, c;
+  Hermite(PetscReal x0_, PetscReal x1, PetscReal v0, PetscReal v1, PetscReal h) : x0(x0_), hv0(h * v0)
+  {
+    const PetscReal d = x1 - x0_;
+    b                 = 3 * d - h * (2 * v0 + v1);
+    c                 = h * (v0 + v1) - 2 * d;
+  }
+  PetscReal operator()(PetscReal s) const { return x0 + s * (hv0 + s * (b + s * c)); }
+  // Smallest and largest value on [0, 1]: the end points and the roots of p' = hv0 + 2 b s + 3 c s^2.
+  void Range(PetscReal &lo, PetscReal &hi) const
+  {
+    lo = std::min((*this)(0), (*this)(1));
+    hi = std::max((*this)(0), (*this)(1));
+    const PetscReal A = 3 * c, B = 2 * b, C = hv0;
+    PetscReal       r[2];
+    int             n = 0;
+    if (std::abs(A) > 1e-12 * (std::abs(B) + std::abs(C))) {
+      const PetscReal disc = B * B - 4 * A * C;
+      if (disc >= 0) {
+        const PetscReal q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
+        r[n++]            = q / A;
+        if (q != 0) r[n++] = C / q;
+      }
+    } else if (B != 0) r[n++] = -C / B;
+    for (int i = 0; i < n; ++i)
+      if (r[i] > 0 && r[i] < 1) lo = std::min(lo, (*this)(r[i])), hi = std::max(hi, (*this)(r[i]));
+  }
+  // A root of p(s) = level in [0, 1] given p(0) < level <= p(1); bisection, since p need not be monotone.
+  PetscReal Crossing(PetscReal level) const
+  {
+    PetscReal lo = 0, hi = 1;
+    for (int i = 0; i < 64 && hi - lo > 1e-16; ++i) {
+      const PetscReal m = 0.5 * (lo + hi);
+      ((*this)(m) < level ? lo : hi) = m;
+    }
+    return 0.5 * (lo + hi);
+  }
+};
+
+struct Crossing {
+  PetscReal t;    // time of the up-crossing
+  size_t    k;    // record interval [k, k + 1] it lies in
+  PetscReal s;    // fraction of that interval
+};
+
+// Least-squares line y = a + slope i, i = 0..n-1: slope and the std of the residuals.
+void FitLine(const std::vector<PetscReal> &y, PetscReal &slope, PetscReal &scatter)
+{
+  const size_t n = y.size();
+  PetscReal    im = 0.5 * (n - 1), ym = 0, sxx = 0, sxy = 0, r2 = 0;
+  for (PetscReal v : y) ym += v / n;
+  for (size_t i = 0; i < n; ++i) sxx += (i - im) * (i - im), sxy += (i - im) * (y[i] - ym);
+  slope = sxx > 0 ? sxy / sxx : 0;
+  for (size_t i = 0; i < n; ++i) r2 += std::pow(y[i] - ym - slope * (i - im), 2);
+  scatter = n > 2 ? std::sqrt(r2 / (n - 2)) : 0;
+}
+
+} // namespace
+
 void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, PetscInt settle_periods)
 {
   TransientSummary &s  = res.summary;
   const size_t      nr = res.t.size();
   const PetscInt    N = res.N, nc = res.nc;
-  if (nr < 4) return;
-  const size_t from = nr - std::max<size_t>(nr / 5, 2);
+  if (nr < 4 || N < 1 || res.U.size() < nr * N) return;
+  const size_t from  = nr - std::max<size_t>(nr / 5, 2);
+  const bool   has_v = res.V.size() >= nr * N; // without velocities the interpolant is the chord
+  auto         U     = [&](size_t k, PetscInt j) { return res.U[k * N + j]; };
+  auto         piece = [&](size_t k, PetscInt j) {
+    const PetscReal h = res.t[k + 1] - res.t[k], chord = (U(k + 1, j) - U(k, j)) / h;
+    return Hermite(U(k, j), U(k + 1, j), has_v ? res.V[k * N + j] : chord, has_v ? res.V[(k + 1) * N + j] : chord, h);
+  };
+  // Extrema of DOF j over records a..b: the recorded ones refined in their neighbouring intervals.
+  auto extrema = [&](PetscInt j, size_t a, size_t b, PetscReal &lo, PetscReal &hi) {
+    size_t klo = a, khi = a;
+    for (size_t k = a; k <= b; ++k) {
+      if (U(k, j) < U(klo, j)) klo = k;
+      if (U(k, j) > U(khi, j)) khi = k;
+    }
+    lo = U(klo, j), hi = U(khi, j);
+    for (size_t k : {klo, khi})
+      for (size_t i = k > a ? k - 1 : a; i <= k && i < b; ++i) {
+        PetscReal l, h;
+        piece(i, j).Range(l, h);
+        lo = std::min(lo, l), hi = std::max(hi, h);
+      }
+  };
+
   s.peak_to_peak.assign(N, 0.0);
-  PetscInt best = 0;
+  std::vector<PetscReal> mean(N, 0.0);
+  PetscInt               best = 0;
   for (PetscInt j = 0; j < N; ++j) {
-    PetscReal lo = PETSC_INFINITY, hi = PETSC_NINFINITY;
-    for (size_t k = from; k < nr; ++k) lo = std::min(lo, res.U[k * N + j]), hi = std::max(hi, res.U[k * N + j]);
+    PetscReal lo, hi;
+    extrema(j, from, nr - 1, lo, hi);
     s.peak_to_peak[j] = hi - lo;
+    for (size_t k = from; k < nr; ++k) mean[j] += U(k, j) / (PetscReal)(nr - from);
     if (s.peak_to_peak[j] > s.peak_to_peak[best]) best = j;
   }
-  // Period: mean spacing of up-crossings of the median, linearly interpolated in time. (The median
-  // stays at the centre of a growing or decaying oscillation, where the mid-range follows the
-  // largest cycle and the small ones never cross it.)
-  PetscReal              lo = PETSC_INFINITY, hi = PETSC_NINFINITY;
-  std::vector<PetscReal> w;
-  for (size_t k = from; k < nr; ++k) {
-    lo = std::min(lo, res.U[k * N + best]), hi = std::max(hi, res.U[k * N + best]);
-    w.push_back(res.U[k * N + best]);
-  }
-  std::nth_element(w.begin(), w.begin() + w.size() / 2, w.end());
-  const PetscReal mid = w[w.size() / 2];
-  std::vector<PetscReal> cross;
-  std::vector<size_t>    at; // record index after each crossing
-  for (size_t k = from + 1; k < nr; ++k) {
-    const PetscReal a = res.U[(k - 1) * N + best] - mid, b = res.U[k * N + best] - mid;
-    if (a < 0 && b >= 0) {
-      cross.push_back(res.t[k - 1] + (res.t[k] - res.t[k - 1]) * (-a) / (b - a));
-      at.push_back(k);
-    }
-  }
-  s.period = cross.size() >= 2 ? (cross.back() - cross.front()) / (cross.size() - 1) : 0.0;
-  s.cycles = cross.size() >= 2 ? (PetscInt)cross.size() - 1 : 0;
+  s.signal_dof      = best;
+  s.settled         = false;
+  s.period          = 0;
+  s.cycles          = 0;
+  s.fit_cycles      = 0;
+  s.period_multiple = 1;
+  s.amplitude_rate = s.period_change = s.amplitude_change = s.return_error = s.amplitude_scatter = s.period_scatter = 0;
+  s.records_per_period = 0;
 
-  // Settled? Per cycle: period and peak-to-peak; the last settle_periods + 1 cycles must agree.
-  const PetscReal dt = res.t[nr - 1] - res.t[nr - 2];
-  s.records_per_period = s.period > 0 && dt > 0 ? s.period / dt : 0;
-  s.settled            = false;
-  s.amplitude_rate = s.period_change = 0;
-  if (!(hi - lo > 0)) s.trend = Trend::NoOscillation;
-  else if (s.cycles == 0) s.trend = res.T_ref > 0 && dt > res.T_ref / 8 ? Trend::Aliased : Trend::TooShort;
-  else if (s.records_per_period < 8 || (res.T_ref > 0 && dt > res.T_ref / 8)) s.trend = Trend::Aliased;
-  else if (s.cycles < settle_periods + 1) s.trend = Trend::TooShort;
-  else {
-    std::vector<PetscReal> T, A;
-    for (size_t c = cross.size() - settle_periods - 2; c + 1 < cross.size(); ++c) {
-      T.push_back(cross[c + 1] - cross[c]);
-      PetscReal a = PETSC_INFINITY, b = PETSC_NINFINITY;
-      for (size_t k = at[c] - 1; k <= at[c + 1]; ++k) a = std::min(a, res.U[k * N + best]), b = std::max(b, res.U[k * N + best]);
-      A.push_back(b - a);
+  // Poincare section: up-crossings of the mean of the DOF that moves most, with hysteresis. A
+  // crossing counts only after the DOF went below mean - kHysteresis x the depth of the previous
+  // cycle, so the wiggles of strong harmonics across the mean are not cycles, and a growing or
+  // decaying motion (by up to 1 / kHysteresis per cycle) keeps every cycle. Before the first
+  // crossing the depth is that of the first period of the window (a first pass with the whole
+  // window's depth estimates the period), so a growing motion loses no cycle either.
+  constexpr PetscReal   kHysteresis = 0.5;
+  const PetscReal       c           = mean[best];
+  const PetscReal       dt          = (res.t[nr - 1] - res.t[from]) / (PetscReal)(nr - 1 - from);
+  std::vector<Crossing> cr;
+  auto                  section = [&](PetscReal depth) {
+    PetscReal cyc_min = PETSC_INFINITY;
+    bool      armed   = false;
+    cr.clear();
+    for (size_t k = from; k + 1 < nr; ++k) {
+      const PetscReal x0 = U(k, best), x1 = U(k + 1, best);
+      cyc_min            = std::min(cyc_min, x0);
+      if (x0 < c - kHysteresis * depth) armed = true;
+      if (armed && x0 < c && x1 >= c) {
+        const PetscReal sk = piece(k, best).Crossing(c);
+        cr.push_back({res.t[k] + sk * (res.t[k + 1] - res.t[k]), k, sk});
+        armed   = false;
+        depth   = c - cyc_min;
+        cyc_min = PETSC_INFINITY;
+      }
     }
-    const PetscReal Tmin = *std::min_element(T.begin(), T.end()), Tmax = *std::max_element(T.begin(), T.end());
-    PetscReal       Tmean = 0;
-    for (PetscReal x : T) Tmean += x / T.size();
-    s.period_change  = (Tmax - Tmin) / Tmean;
-    // Geometric mean growth per period of the envelope, first to last of the cycles looked at.
-    s.amplitude_rate = A.front() > 0 && A.back() > 0 ? std::expm1(std::log(A.back() / A.front()) / (A.size() - 1)) : 0;
-    PetscReal Amin = *std::min_element(A.begin(), A.end()), Amax = *std::max_element(A.begin(), A.end());
-    const PetscReal Aspread = Amax > 0 ? (Amax - Amin) / Amax : 0;
-    if (s.period_change < settle_tol && Aspread < settle_tol) s.trend = Trend::Settled, s.settled = true;
-    else if (s.amplitude_rate > settle_tol / settle_periods) s.trend = Trend::Growing;
-    else if (s.amplitude_rate < -settle_tol / settle_periods) s.trend = Trend::Decaying;
-    else s.trend = Trend::Drifting;
+  };
+  {
+    PetscReal depth = 0;
+    for (size_t k = from; k < nr; ++k) depth = std::max(depth, c - U(k, best));
+    section(depth);
+    if (cr.size() >= 2) {
+      const PetscReal T1 = (cr.back().t - cr.front().t) / (PetscReal)(cr.size() - 1);
+      depth              = 0;
+      for (size_t k = from; k < nr && res.t[k] <= res.t[from] + T1; ++k) depth = std::max(depth, c - U(k, best));
+      section(depth);
+    }
   }
-  if (nc > 0) {
+
+  if (!(s.peak_to_peak[best] > 0)) s.trend = Trend::NoOscillation;
+  else if (cr.size() < 2) s.trend = res.T_ref > 0 && dt > res.T_ref / 8 ? Trend::Aliased : Trend::TooShort;
+  else {
+    // The whole state Z = (U - mean, dU / omega) at the last crossings (at most kMaxStates, so a
+    // long window of a large model costs little): U by its Hermite interpolant, dU by the cubic
+    // through the 4 nearest records (no acceleration is recorded).
+    const size_t    L         = (size_t)settle_periods + 1;
+    const size_t    kMax      = std::max<size_t>(64, L) + 3;
+    const size_t    e0        = cr.size() > kMax ? cr.size() - kMax : 0, ne = cr.size() - e0;
+    const PetscReal omega     = 2 * PETSC_PI * (PetscReal)(cr.size() - 1) / (cr.back().t - cr.front().t);
+    PetscReal       zscale    = 0;
+    for (size_t k = from; k < nr; ++k) {
+      PetscReal z2 = 0;
+      for (PetscInt j = 0; j < N; ++j) {
+        z2 += std::pow(U(k, j) - mean[j], 2);
+        if (has_v) z2 += std::pow(res.V[k * N + j] / omega, 2);
+      }
+      zscale += std::sqrt(z2) / (PetscReal)(nr - from);
+    }
+    std::vector<PetscReal> Z(ne * 2 * N, 0.0);
+    for (size_t e = 0; e < ne; ++e) {
+      const Crossing &x  = cr[e0 + e];
+      PetscReal      *z  = &Z[e * 2 * N];
+      const size_t    k0 = std::min(x.k > 0 ? x.k - 1 : 0, nr - 4);
+      PetscReal       w[4];
+      for (int a = 0; a < 4; ++a) {
+        w[a] = 1;
+        for (int b = 0; b < 4; ++b)
+          if (b != a) w[a] *= (x.t - res.t[k0 + b]) / (res.t[k0 + a] - res.t[k0 + b]);
+      }
+      for (PetscInt j = 0; j < N; ++j) {
+        z[j] = piece(x.k, j)(x.s) - mean[j];
+        if (has_v)
+          for (int a = 0; a < 4; ++a) z[N + j] += w[a] * res.V[(k0 + a) * N + j] / omega;
+      }
+    }
+    auto ret = [&](size_t e, size_t m) { // return error from crossing e0 + e to e0 + e + m
+      PetscReal d2 = 0;
+      for (PetscInt j = 0; j < 2 * N; ++j) d2 += std::pow(Z[(e + m) * 2 * N + j] - Z[e * 2 * N + j], 2);
+      return zscale > 0 ? std::sqrt(d2) / zscale : 0.0;
+    };
+    auto median_ret = [&](size_t m) {
+      std::vector<PetscReal> r;
+      for (size_t e = 0; e + m < ne; ++e) r.push_back(ret(e, m));
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      return r[r.size() / 2];
+    };
+    // The state's period: 2 or 3 crossings when the state returns 10 x closer after them than
+    // after one (a period-2/3 cycle, or a harmonic that still crosses twice a period).
+    size_t m = 1;
+    if (ne >= 4) {
+      const PetscReal r1 = median_ret(1);
+      for (size_t q = 2; q <= 3 && m == 1; ++q)
+        if (ne >= q + 3 && median_ret(q) < 0.1 * r1) m = q;
+    }
+    s.period_multiple = (PetscInt)m;
+
+    // Per cycle (crossing i to i + m): period, peak-to-peak of the section DOF, return error.
+    std::vector<PetscReal> T, A, logA;
+    for (size_t i = 0; i + m < cr.size(); ++i) {
+      PetscReal lo, hi;
+      extrema(best, cr[i].k, cr[i + m].k + 1, lo, hi);
+      T.push_back(cr[i + m].t - cr[i].t);
+      A.push_back(hi - lo);
+      logA.push_back(std::log(std::max(hi - lo, PETSC_SMALL * s.peak_to_peak[best])));
+    }
+    s.cycles             = (PetscInt)T.size();
+    const size_t    nl   = std::min(L, T.size());
+    PetscReal       Tsum = 0;
+    for (size_t i = T.size() - nl; i < T.size(); ++i) Tsum += T[i];
+    s.period             = Tsum / nl;
+    s.records_per_period = s.period / dt;
+    if (s.records_per_period < 8 || (res.T_ref > 0 && dt > res.T_ref / 8)) s.trend = Trend::Aliased;
+    else if (T.size() < L) s.trend = Trend::TooShort;
+    else {
+      const auto Tmm = std::minmax_element(T.end() - L, T.end());
+      const auto Amm = std::minmax_element(A.end() - L, A.end());
+      s.period_change    = (*Tmm.second - *Tmm.first) / s.period;
+      s.amplitude_change = *Amm.second > 0 ? (*Amm.second - *Amm.first) / *Amm.second : 0;
+      for (size_t i = cr.size() - m - L; i + m < cr.size(); ++i) s.return_error = std::max(s.return_error, ret(i - e0, m));
+      // Trend over every cycle of the window: the fitted change per period of log(peak-to-peak)
+      // (a cycle advances one crossing, 1/m of a period), and the scatter about that line.
+      PetscReal slope, pslope, pscatter;
+      FitLine(logA, slope, s.amplitude_scatter);
+      FitLine(T, pslope, pscatter);
+      s.period_scatter = pscatter / s.period;
+      s.fit_cycles     = (PetscInt)logA.size();
+      s.amplitude_rate = std::expm1(slope * m);
+      // A trend is one that carries the envelope further over the window than 4 x its scatter.
+      const bool trend = std::abs(s.amplitude_rate) > settle_tol / settle_periods &&
+                         std::abs(slope) * (PetscReal)(logA.size() - 1) > 4 * s.amplitude_scatter;
+      if (s.period_change < settle_tol && s.amplitude_change < settle_tol && s.return_error < settle_tol)
+        s.trend = Trend::Settled, s.settled = true;
+      else if (trend) s.trend = s.amplitude_rate > 0 ? Trend::Growing : Trend::Decaying;
+      else if (s.amplitude_scatter > settle_tol || s.period_scatter > settle_tol) {
+        s.trend = Trend::Irregular; // no cycle to converge to: the period is the mean over the window
+        for (size_t i = 0; i + nl < T.size(); ++i) Tsum += T[i];
+        s.period = Tsum / T.size();
+      }
+      else s.trend = Trend::Drifting;
+    }
+  }
+  if (nc > 0 && res.status.size() >= nr * nc) {
     PetscInt cnt[3] = {0, 0, 0};
     for (size_t k = from; k < nr; ++k)
       for (PetscInt c = 0; c < nc; ++c) cnt[res.status[k * nc + c]]++;
@@ -384,14 +571,16 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
     s.frac_stuck        = cnt[kStick] / tot;
     s.frac_sliding      = cnt[kSlip] / tot;
   }
-  PetscReal emax = 0, defect = 0;
-  const PetscReal E0 = res.energy[0];
-  for (size_t k = 0; k < nr; ++k) {
-    const PetscReal *e = &res.energy[4 * k];
-    emax               = std::max(emax, std::abs(e[0]));
-    defect             = std::max(defect, std::abs((e[0] - E0) - (e[2] + e[3] - e[1])));
+  if (res.energy.size() >= 4 * nr) {
+    PetscReal       emax = 0, defect = 0;
+    const PetscReal E0   = res.energy[0];
+    for (size_t k = 0; k < nr; ++k) {
+      const PetscReal *e = &res.energy[4 * k];
+      emax               = std::max(emax, std::abs(e[0]));
+      defect             = std::max(defect, std::abs((e[0] - E0) - (e[2] + e[3] - e[1])));
+    }
+    s.energy_defect = emax > 0 ? defect / emax : 0;
   }
-  s.energy_defect = emax > 0 ? defect / emax : 0;
 }
 
 PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer viewer) const
@@ -408,15 +597,24 @@ PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer v
   PetscCall(PetscViewerASCIIPushTab(viewer));
   if (s.settled)
     PetscCall(PetscViewerASCIIPrintf(viewer,
-                                     "settled cycle period %.7f s (%.4f Hz): period and peak-to-peak change < %g over the last %" PetscInt_FMT
-                                     " cycles\n",
-                                     (double)s.period, 1 / (double)s.period, (double)settle_tol, settle_periods + 1));
+                                     "settled cycle period %.9g s (%.4f Hz): period, peak-to-peak and state change < %g over the last %" PetscInt_FMT
+                                     " cycles (state return error %.1e)\n",
+                                     (double)s.period, 1 / (double)s.period, (double)settle_tol, settle_periods + 1,
+                                     (double)s.return_error));
   else if (s.trend == Trend::Growing || s.trend == Trend::Decaying || s.trend == Trend::Drifting)
     PetscCall(PetscViewerASCIIPrintf(viewer,
-                                     "not settled: %s, peak-to-peak %+.3e per period, period spread %.3e over the last %" PetscInt_FMT
-                                     " cycles (mean period %.7f s); run longer (-transient_periods)\n",
-                                     TrendName(s.trend), (double)s.amplitude_rate, (double)s.period_change, settle_periods + 1,
-                                     (double)s.period));
+                                     "not settled: %s, peak-to-peak %+.3e per period (fitted over %" PetscInt_FMT
+                                     " cycles, scatter %.1e); over the last %" PetscInt_FMT
+                                     " cycles period spread %.3e, state return error %.2e (mean period %.9g s); run longer (-transient_periods)\n",
+                                     TrendName(s.trend), (double)s.amplitude_rate, s.fit_cycles, (double)s.amplitude_scatter,
+                                     settle_periods + 1, (double)s.period_change, (double)s.return_error, (double)s.period));
+  else if (s.trend == Trend::Irregular)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "not settled: irregular, cycle-to-cycle scatter %.2e in peak-to-peak and %.2e in period with no trend "
+                                     "(%+.1e per period over %" PetscInt_FMT " cycles); the state returns only within %.2e after a period "
+                                     "(mean period over those cycles %.9g s): not a periodic cycle (quasi-periodic or chaotic motion)\n",
+                                     (double)s.amplitude_scatter, (double)s.period_scatter, (double)s.amplitude_rate, s.fit_cycles,
+                                     (double)s.return_error, (double)s.period));
   else if (s.trend == Trend::Aliased)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "not settled: aliased, %.1f records per period (record spacing %g s, linear period %g s): lower "
@@ -427,6 +625,10 @@ PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer v
                                              " needed (-transient_settle_periods); run longer\n",
                                      s.cycles, settle_periods + 1));
   else PetscCall(PetscViewerASCIIPrintf(viewer, "not settled: no oscillation in the last 20 %% of the run (decayed to rest or too short)\n"));
+  if (s.cycles > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "cycle read at the up-crossings of DOF %" PetscInt_FMT "'s mean (%" PetscInt_FMT
+                                             " per period of the state), %" PetscInt_FMT " cycles, %.1f records per period\n",
+                                     s.signal_dof, s.period_multiple, s.cycles, (double)s.records_per_period));
   std::string p2p;
   for (size_t j = 0; j < s.peak_to_peak.size() && j < 12; ++j) {
     char b[32];
@@ -475,10 +677,11 @@ PetscErrorCode TransientAnalysis::Write(const TransientResult &res, io::H5Writer
   if (res.T_ref > 0) PetscCall(out.WriteAttribute("/transient", "steps_per_period", res.T_ref / res.h));
   PetscCall(out.WriteAttribute("/transient", "keep_every", res.keep_every));
   PetscCall(out.WriteAttribute("/transient", "complete", (PetscInt)res.complete));
-  PetscReal summ[8] = {res.summary.period,         res.summary.mean_fp_iterations, res.summary.frac_separated,
-                       res.summary.frac_stuck,     (PetscReal)res.summary.trend,   res.summary.amplitude_rate,
-                       res.summary.period_change,  (PetscReal)settle_tol};
-  PetscCallMPI(MPI_Bcast(summ, 8, MPIU_REAL, 0, comm_));
+  const TransientSummary &S = res.summary;
+  PetscReal summ[14] = {S.period,         S.mean_fp_iterations, S.frac_separated,    S.frac_stuck,        (PetscReal)S.trend,
+                        S.amplitude_rate, S.period_change,      (PetscReal)settle_tol, S.return_error,    S.amplitude_change,
+                        S.amplitude_scatter, S.period_scatter,  (PetscReal)S.signal_dof, (PetscReal)S.period_multiple};
+  PetscCallMPI(MPI_Bcast(summ, 14, MPIU_REAL, 0, comm_));
   const Trend trend = (Trend)(int)summ[4];
   PetscCall(out.WriteAttribute("/transient", "settled", (PetscInt)(trend == Trend::Settled)));
   PetscCall(out.WriteAttribute("/transient", "trend", TrendName(trend)));
@@ -486,6 +689,12 @@ PetscErrorCode TransientAnalysis::Write(const TransientResult &res, io::H5Writer
   PetscCall(out.WriteAttribute("/transient", "period_change", summ[6]));
   PetscCall(out.WriteAttribute("/transient", "settle_tol", summ[7]));
   PetscCall(out.WriteAttribute("/transient", "settle_cycles", settle_periods + 1));
+  PetscCall(out.WriteAttribute("/transient", "return_error", summ[8]));
+  PetscCall(out.WriteAttribute("/transient", "amplitude_change", summ[9]));
+  PetscCall(out.WriteAttribute("/transient", "amplitude_scatter", summ[10]));
+  PetscCall(out.WriteAttribute("/transient", "period_scatter", summ[11]));
+  PetscCall(out.WriteAttribute("/transient", "signal_dof", (PetscInt)summ[12]));
+  PetscCall(out.WriteAttribute("/transient", "period_multiple", (PetscInt)summ[13]));
   PetscCall(out.WriteAttribute("/transient", "period", summ[0]));
   PetscCall(out.WriteAttribute("/transient", "mean_fp_iterations", summ[1]));
   PetscCall(out.WriteAttribute("/transient", "fraction_separated", summ[2]));

@@ -9,7 +9,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
+#include <vector>
 
 using namespace squeal;
 
@@ -300,4 +302,123 @@ TEST(Verdicts, SweepTracksOneModeAcrossMu)
   }
   EXPECT_EQ(r.critical_certified[0], 1);
   for (PetscInt c : r.covered) EXPECT_EQ(c, 1);
+}
+
+// The cycle measurement on synthetic records with known answers (closed forms): the period through
+// strong harmonics to 1e-7, the rate of a decaying or growing sinusoid, a quasi-periodic motion
+// called irregular, and a period-2 motion read as the state's period.
+namespace {
+
+using Signal = std::function<void(double t, double *x, double *v)>; // values and exact derivatives of N DOFs
+
+// Records of n_periods of T at T / per_period spacing (not a divisor of T: crossings fall anywhere
+// between records), as the transient stores them.
+TransientResult Records(PetscInt N, double T, double n_periods, double per_period, const Signal &f)
+{
+  TransientResult r;
+  r.N = N, r.nc = 0, r.T_ref = T;
+  const double dt = T / per_period;
+  const size_t n  = (size_t)(n_periods * per_period);
+  std::vector<double> x(N), v(N);
+  for (size_t k = 0; k < n; ++k) {
+    const double t = k * dt;
+    f(t, x.data(), v.data());
+    r.t.push_back(t);
+    r.U.insert(r.U.end(), x.begin(), x.end());
+    r.V.insert(r.V.end(), v.begin(), v.end());
+  }
+  return r;
+}
+
+const double kPeriod = 1.1544e-4, kOmega = 2 * M_PI / kPeriod;
+
+} // namespace
+
+TEST(Verdicts, HarmonicsDoNotFoolTheCyclePeriod)
+{
+  // Strong 2nd and 3rd harmonics: the signal crosses its median 3 times per period.
+  auto x0 = [](double t) { return std::sin(kOmega * t) + 0.8 * std::sin(2 * kOmega * t + 0.3) + 0.7 * std::sin(3 * kOmega * t + 1.1); };
+  auto v0 = [](double t) {
+    return kOmega * (std::cos(kOmega * t) + 1.6 * std::cos(2 * kOmega * t + 0.3) + 2.1 * std::cos(3 * kOmega * t + 1.1));
+  };
+  TransientResult r = Records(2, kPeriod, 150, 199.37, [&](double t, double *x, double *v) {
+    x[0] = 1e-5 * x0(t), v[0] = 1e-5 * v0(t);
+    x[1] = 3e-6 * std::cos(kOmega * t), v[1] = -3e-6 * kOmega * std::sin(kOmega * t);
+  });
+  // Reference for the difficulty: up-crossings of the median of DOF 0 per period, dense grid.
+  {
+    std::vector<double> g;
+    for (int i = 0; i < 100000; ++i) g.push_back(x0(i * kPeriod / 100000));
+    std::vector<double> w = g;
+    std::nth_element(w.begin(), w.begin() + w.size() / 2, w.end());
+    int up = 0;
+    for (size_t i = 1; i < g.size(); ++i) up += g[i - 1] < w[w.size() / 2] && g[i] >= w[w.size() / 2];
+    ASSERT_GE(up, 2) << "the test signal should cross its median more than once per period";
+  }
+  TransientAnalysis::Summarise(r, 1e-3, 5);
+  const TransientSummary &s = r.summary;
+  std::printf("harmonics: period %.10e s (%+.1e), return error %.1e, %s\n", s.period, s.period / kPeriod - 1, s.return_error,
+              TrendName(s.trend));
+  EXPECT_EQ(s.signal_dof, 0);
+  EXPECT_EQ(s.period_multiple, 1);
+  EXPECT_NEAR(s.period / kPeriod, 1.0, 1e-7);
+  EXPECT_TRUE(s.settled) << TrendName(s.trend);
+  EXPECT_LT(s.return_error, 1e-5); // dU interpolated by a cubic through 4 records (no acceleration stored)
+  EXPECT_LT(s.period_change, 1e-6);
+  // Peak-to-peak against a dense evaluation of the closed form.
+  double lo = 1e300, hi = -1e300;
+  for (int i = 0; i < 1000000; ++i) lo = std::min(lo, x0(i * kPeriod / 1000000)), hi = std::max(hi, x0(i * kPeriod / 1000000));
+  EXPECT_NEAR(r.summary.peak_to_peak[0] / (1e-5 * (hi - lo)), 1.0, 1e-6);
+}
+
+TEST(Verdicts, DecayingAndGrowingSinusoidsAtTheirRate)
+{
+  for (double rate : {-0.03, 0.1}) {
+    const double sigma = std::log1p(rate) / kPeriod; // peak-to-peak x (1 + rate) per period
+    TransientResult r  = Records(1, kPeriod, 60, 100.3, [&](double t, double *x, double *v) {
+      x[0] = std::exp(sigma * t) * std::sin(kOmega * t + 0.4);
+      v[0] = std::exp(sigma * t) * (sigma * std::sin(kOmega * t + 0.4) + kOmega * std::cos(kOmega * t + 0.4));
+    });
+    TransientAnalysis::Summarise(r, 1e-3, 5);
+    const TransientSummary &s = r.summary;
+    std::printf("rate %+.2f: measured %+.8f per period over %d cycles, period %+.1e, %s\n", rate, s.amplitude_rate,
+                (int)s.fit_cycles, s.period / kPeriod - 1, TrendName(s.trend));
+    EXPECT_FALSE(s.settled) << "rate " << rate;
+    EXPECT_EQ(s.trend, rate < 0 ? Trend::Decaying : Trend::Growing) << TrendName(s.trend);
+    EXPECT_NEAR(s.amplitude_rate / rate, 1.0, 1e-4) << "rate " << rate;
+    EXPECT_NEAR(s.period / kPeriod, 1.0, 1e-3) << "rate " << rate;
+    EXPECT_GE(s.fit_cycles, 10) << "rate " << rate;
+  }
+}
+
+TEST(Verdicts, QuasiPeriodicMotionIsIrregular)
+{
+  const double w2 = std::sqrt(2.0) * kOmega; // incommensurate with kOmega
+  TransientResult r = Records(2, kPeriod, 200, 150.7, [&](double t, double *x, double *v) {
+    x[0] = std::sin(kOmega * t) + 0.3 * std::sin(w2 * t + 0.2), v[0] = kOmega * std::cos(kOmega * t) + 0.3 * w2 * std::cos(w2 * t + 0.2);
+    x[1] = 0.5 * std::sin(w2 * t), v[1] = 0.5 * w2 * std::cos(w2 * t);
+  });
+  TransientAnalysis::Summarise(r, 1e-3, 5);
+  const TransientSummary &s = r.summary;
+  std::printf("quasi-periodic: %s, scatter %.2e (peak-to-peak) %.2e (period), rate %+.1e, return error %.2e\n", TrendName(s.trend),
+              s.amplitude_scatter, s.period_scatter, s.amplitude_rate, s.return_error);
+  EXPECT_FALSE(s.settled);
+  EXPECT_EQ(s.trend, Trend::Irregular) << TrendName(s.trend) << ", rate " << s.amplitude_rate << ", scatter " << s.amplitude_scatter;
+  EXPECT_GT(s.return_error, 1e-2);
+}
+
+TEST(Verdicts, PeriodTwoMotionReadsTheStatePeriod)
+{
+  // A subharmonic: the section is crossed once per T, the state returns only after 2 T.
+  TransientResult r = Records(1, kPeriod, 120, 180.9, [&](double t, double *x, double *v) {
+    x[0] = std::sin(kOmega * t) + 0.2 * std::sin(0.5 * kOmega * t + 0.5);
+    v[0] = kOmega * std::cos(kOmega * t) + 0.1 * kOmega * std::cos(0.5 * kOmega * t + 0.5);
+  });
+  TransientAnalysis::Summarise(r, 1e-3, 5);
+  const TransientSummary &s = r.summary;
+  std::printf("period 2: %d crossings per period, period / 2T %+.1e, %s\n", (int)s.period_multiple, s.period / (2 * kPeriod) - 1,
+              TrendName(s.trend));
+  EXPECT_EQ(s.period_multiple, 2);
+  EXPECT_NEAR(s.period / (2 * kPeriod), 1.0, 1e-7);
+  EXPECT_TRUE(s.settled) << TrendName(s.trend);
 }

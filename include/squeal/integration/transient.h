@@ -21,23 +21,37 @@
 
 namespace squeal {
 
-// Settled means settled: over the last -transient_settle_periods cycles (up-crossings of the DOF
-// that moves most, last 20 % of the records) the period and the amplitude envelope (peak-to-peak
-// per cycle) change by less than -transient_settle_tol (relative); otherwise the trend says how
-// the motion is still changing. Records coarser than 1/8 of the period (or of the linear period)
-// cannot resolve the cycle: "aliased".
-enum class Trend { Settled = 0, Growing, Decaying, Drifting, Aliased, TooShort, NoOscillation };
+// Settled means settled. The cycle is read off the last 20 % of the records on the DOF that moves
+// most: a Poincare section at the up-crossings of its mean, counted with hysteresis (a crossing
+// counts only after the DOF went below mean - 0.5 x the previous cycle's depth, so harmonics that
+// wiggle across the mean are not cycles), timed by the cubic Hermite interpolant of (U, dU)
+// between records. The state's period is the section spacing, or 2 or 3 spacings when the whole
+// state (U, dU / omega) returns only after that many. Per cycle: period, peak-to-peak, and the
+// state's return error. Settled: over the last -transient_settle_periods + 1 cycles the period
+// and the peak-to-peak change and the state returns by less than -transient_settle_tol
+// (relative). Otherwise the trend: growing / decaying when the peak-to-peak's fitted change per
+// period dominates its cycle-to-cycle scatter, irregular when the scatter (peak-to-peak, period
+// or state return) exceeds the tolerance without such a trend, drifting otherwise. Records
+// coarser than 1/8 of the period (or of the linear period) cannot resolve the cycle: "aliased".
+enum class Trend { Settled = 0, Growing, Decaying, Drifting, Aliased, TooShort, NoOscillation, Irregular };
 const char *TrendName(Trend t);
 
 struct TransientSummary {
-  PetscReal              period = 0;     // mean up-crossing spacing over the last 20 %; 0 if none
+  PetscReal              period = 0;     // mean cycle period over the last settle_periods + 1 cycles (else all); 0 if none
   Trend                  trend = Trend::NoOscillation;
   bool                   settled = false;
-  PetscReal              amplitude_rate = 0; // relative change of the peak-to-peak per period (last cycles)
-  PetscReal              period_change = 0;  // (max - min) / mean of the cycle periods (last cycles)
+  PetscReal              amplitude_rate = 0; // relative change of the peak-to-peak per period (fit over the cycles in the last 20 %)
+  PetscReal              period_change = 0;  // (max - min) / mean of the cycle periods (last settle_periods + 1 cycles)
+  PetscReal              amplitude_change = 0; // (max - min) / max of the peak-to-peak per cycle (same cycles)
+  PetscReal              return_error = 0;     // max over the same cycles of |Z(t + T) - Z(t)| / mean |Z|, Z = (U - mean, dU / omega)
+  PetscReal              amplitude_scatter = 0; // std of log(peak-to-peak) about its fitted trend, cycles in the last 20 %
+  PetscReal              period_scatter = 0;    // std / mean of the cycle periods, cycles in the last 20 %
   PetscInt               cycles = 0;         // complete cycles in the last 20 %
+  PetscInt               fit_cycles = 0;     // cycles the trend was fitted on
+  PetscInt               signal_dof = -1;    // DOF whose crossings define the section
+  PetscInt               period_multiple = 1; // section crossings per period of the state (1, 2 or 3)
   PetscReal              records_per_period = 0;
-  std::vector<PetscReal> peak_to_peak;   // per DOF, over the last 20 % of the run
+  std::vector<PetscReal> peak_to_peak;   // per DOF, over the last 20 % of the run (extrema refined between records)
   PetscReal              frac_separated = 0, frac_stuck = 0, frac_sliding = 0; // over the last 20 %, all points
   PetscReal              mean_fp_iterations = 0;
   PetscInt               fp_capped = 0, first_capped_step = -1;
@@ -67,6 +81,8 @@ public:
                      TransientResult &res);
   PetscErrorCode View(const TransientResult &res, PetscViewer viewer) const;
   PetscErrorCode Write(const TransientResult &res, io::H5Writer &out) const;
+  // The cycle summary from res.t, U, V (rank 0's records) and, when present, energy and status;
+  // callable on synthetic records (energy and status empty).
   static void    Summarise(TransientResult &res, PetscReal settle_tol = 1e-3, PetscInt settle_periods = 5);
   // Bytes one record takes in memory on rank 0 and in the results file.
   static PetscReal RecordBytes(PetscInt N, PetscInt nc);
