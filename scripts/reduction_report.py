@@ -48,15 +48,20 @@ def main():
     ap.add_argument("--band", type=float, default=0, help="only unstable eigenvalues of the full model below this frequency (Hz)")
     ap.add_argument("--np", type=int, default=1)
     ap.add_argument("--full-np", type=int, default=1)
+    ap.add_argument("--full-h5", default="", help="reuse this results file of the full model's stability run (skips that run)")
     ap.add_argument("--extra", nargs=argparse.REMAINDER, default=[])
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="reduction_report_")
     base = [a.squeal, "-scene", a.scene, "-analyses", "stability", "-eq_mat_mumps_icntl_14", "200"] + a.extra
-    out, wall = run(base + ["-output", os.path.join(tmp, "full.h5")], a.full_np)
-    _, ref = unstable(os.path.join(tmp, "full.h5"))
+    if a.full_h5:
+        _, ref = unstable(a.full_h5)
+        n, wall = "(from %s)" % a.full_h5, float("nan")
+    else:
+        out, wall = run(base + ["-output", os.path.join(tmp, "full.h5")], a.full_np)
+        _, ref = unstable(os.path.join(tmp, "full.h5"))
+        n = re.search(r"(\d+) DOFs", out).group(1)
     if a.band > 0:
         ref = np.array([l for l in ref if l.imag / (2 * np.pi) <= a.band])
-    n = re.search(r"(\d+) DOFs", out).group(1)
     print("full model: %s DOFs, %d unstable eigenvalue(s), stability run %.2f s (wall, %d rank(s))" % (n, len(ref), wall, a.full_np))
     for l in ref:
         print("  sigma = %.6g 1/s, f = %.6g Hz" % (l.real, l.imag / (2 * np.pi)))

@@ -68,6 +68,7 @@ private:
   PetscReal     fband_  = 0;
   PetscInt      max_modes_ = 400;
   PetscBool     rayleigh_  = PETSC_TRUE;
+  PetscBool     sparse_rhs_ = PETSC_TRUE;
   ReductionInfo info_;
 };
 
