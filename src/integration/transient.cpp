@@ -418,7 +418,7 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
   s.cycles          = 0;
   s.fit_cycles      = 0;
   s.period_multiple = 1;
-  s.amplitude_rate = s.period_change = s.amplitude_change = s.return_error = s.amplitude_scatter = s.period_scatter = 0;
+  s.amplitude_rate = s.period_change = s.amplitude_change = s.return_error = s.return_floor = s.amplitude_scatter = s.period_scatter = 0;
   s.records_per_period = 0;
 
   // Poincare section: up-crossings of the mean of the DOF that moves most, with hysteresis. A
@@ -479,22 +479,36 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
       }
       zscale += std::sqrt(z2) / (PetscReal)(nr - from);
     }
-    std::vector<PetscReal> Z(ne * 2 * N, 0.0);
+    // The interpolation error of Z, estimated per crossing by the change of dU from the quadratic
+    // through the 3 nearest of those records to the cubic, is the floor under which a return
+    // error cannot be checked (coarse records: -transient_keep_every).
+    std::vector<PetscReal> Z(ne * 2 * N, 0.0), zfloor(ne, 0.0);
     for (size_t e = 0; e < ne; ++e) {
       const Crossing &x  = cr[e0 + e];
       PetscReal      *z  = &Z[e * 2 * N];
       const size_t    k0 = std::min(x.k > 0 ? x.k - 1 : 0, nr - 4);
-      PetscReal       w[4];
+      const int       q0 = x.t - res.t[k0] < res.t[k0 + 3] - x.t ? 0 : 1; // the quadratic's first node
+      PetscReal       w[4], wq[3];
       for (int a = 0; a < 4; ++a) {
         w[a] = 1;
         for (int b = 0; b < 4; ++b)
           if (b != a) w[a] *= (x.t - res.t[k0 + b]) / (res.t[k0 + a] - res.t[k0 + b]);
       }
+      for (int a = 0; a < 3; ++a) {
+        wq[a] = 1;
+        for (int b = 0; b < 3; ++b)
+          if (b != a) wq[a] *= (x.t - res.t[k0 + q0 + b]) / (res.t[k0 + q0 + a] - res.t[k0 + q0 + b]);
+      }
+      PetscReal f2 = 0;
       for (PetscInt j = 0; j < N; ++j) {
         z[j] = piece(x.k, j)(x.s) - mean[j];
-        if (has_v)
-          for (int a = 0; a < 4; ++a) z[N + j] += w[a] * res.V[(k0 + a) * N + j] / omega;
+        if (!has_v) continue;
+        PetscReal vq = 0;
+        for (int a = 0; a < 4; ++a) z[N + j] += w[a] * res.V[(k0 + a) * N + j] / omega;
+        for (int a = 0; a < 3; ++a) vq += wq[a] * res.V[(k0 + q0 + a) * N + j] / omega;
+        f2 += std::pow(z[N + j] - vq, 2);
       }
+      zfloor[e] = zscale > 0 ? std::sqrt(f2) / zscale : 0.0;
     }
     auto ret = [&](size_t e, size_t m) { // return error from crossing e0 + e to e0 + e + m
       PetscReal d2 = 0;
@@ -539,7 +553,10 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
       const auto Amm = std::minmax_element(A.end() - L, A.end());
       s.period_change    = (*Tmm.second - *Tmm.first) / s.period;
       s.amplitude_change = *Amm.second > 0 ? (*Amm.second - *Amm.first) / *Amm.second : 0;
-      for (size_t i = cr.size() - m - L; i + m < cr.size(); ++i) s.return_error = std::max(s.return_error, ret(i - e0, m));
+      for (size_t i = cr.size() - m - L; i + m < cr.size(); ++i) {
+        s.return_error = std::max(s.return_error, ret(i - e0, m));
+        s.return_floor = std::max(s.return_floor, 2 * (zfloor[i - e0] + zfloor[i - e0 + m])); // 2: a margin on an estimate
+      }
       // Trend over every cycle of the window: the fitted change per period of log(peak-to-peak)
       // (a cycle advances one crossing, 1/m of a period), and the scatter about that line.
       PetscReal slope, pslope, pscatter;
@@ -551,7 +568,7 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
       // A trend is one that carries the envelope further over the window than 4 x its scatter.
       const bool trend = std::abs(s.amplitude_rate) > settle_tol / settle_periods &&
                          std::abs(slope) * (PetscReal)(logA.size() - 1) > 4 * s.amplitude_scatter;
-      if (s.period_change < settle_tol && s.amplitude_change < settle_tol && s.return_error < settle_tol)
+      if (s.period_change < settle_tol && s.amplitude_change < settle_tol && s.return_error < std::max(settle_tol, s.return_floor))
         s.trend = Trend::Settled, s.settled = true;
       else if (trend) s.trend = s.amplitude_rate > 0 ? Trend::Growing : Trend::Decaying;
       else if (s.amplitude_scatter > settle_tol || s.period_scatter > settle_tol) {
@@ -598,16 +615,18 @@ PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer v
   if (s.settled)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "settled cycle period %.9g s (%.4f Hz): period, peak-to-peak and state change < %g over the last %" PetscInt_FMT
-                                     " cycles (state return error %.1e)\n",
+                                     " cycles (state return error %.1e%s)\n",
                                      (double)s.period, 1 / (double)s.period, (double)settle_tol, settle_periods + 1,
-                                     (double)s.return_error));
+                                     (double)s.return_error,
+                                     s.return_error >= settle_tol ? ", within the interpolation error between records: lower -transient_keep_every to check it closer" : ""));
   else if (s.trend == Trend::Growing || s.trend == Trend::Decaying || s.trend == Trend::Drifting)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "not settled: %s, peak-to-peak %+.3e per period (fitted over %" PetscInt_FMT
                                      " cycles, scatter %.1e); over the last %" PetscInt_FMT
-                                     " cycles period spread %.3e, state return error %.2e (mean period %.9g s); run longer (-transient_periods)\n",
+                                     " cycles period spread %.3e, state return error %.2e (interpolation %.1e) (mean period %.9g s); run longer (-transient_periods)\n",
                                      TrendName(s.trend), (double)s.amplitude_rate, s.fit_cycles, (double)s.amplitude_scatter,
-                                     settle_periods + 1, (double)s.period_change, (double)s.return_error, (double)s.period));
+                                     settle_periods + 1, (double)s.period_change, (double)s.return_error, (double)s.return_floor,
+                                     (double)s.period));
   else if (s.trend == Trend::Irregular)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "not settled: irregular, cycle-to-cycle scatter %.2e in peak-to-peak and %.2e in period with no trend "
@@ -678,10 +697,11 @@ PetscErrorCode TransientAnalysis::Write(const TransientResult &res, io::H5Writer
   PetscCall(out.WriteAttribute("/transient", "keep_every", res.keep_every));
   PetscCall(out.WriteAttribute("/transient", "complete", (PetscInt)res.complete));
   const TransientSummary &S = res.summary;
-  PetscReal summ[14] = {S.period,         S.mean_fp_iterations, S.frac_separated,    S.frac_stuck,        (PetscReal)S.trend,
+  PetscReal summ[15] = {S.period,         S.mean_fp_iterations, S.frac_separated,    S.frac_stuck,        (PetscReal)S.trend,
                         S.amplitude_rate, S.period_change,      (PetscReal)settle_tol, S.return_error,    S.amplitude_change,
-                        S.amplitude_scatter, S.period_scatter,  (PetscReal)S.signal_dof, (PetscReal)S.period_multiple};
-  PetscCallMPI(MPI_Bcast(summ, 14, MPIU_REAL, 0, comm_));
+                        S.amplitude_scatter, S.period_scatter,  (PetscReal)S.signal_dof, (PetscReal)S.period_multiple,
+                        S.return_floor};
+  PetscCallMPI(MPI_Bcast(summ, 15, MPIU_REAL, 0, comm_));
   const Trend trend = (Trend)(int)summ[4];
   PetscCall(out.WriteAttribute("/transient", "settled", (PetscInt)(trend == Trend::Settled)));
   PetscCall(out.WriteAttribute("/transient", "trend", TrendName(trend)));
@@ -695,6 +715,7 @@ PetscErrorCode TransientAnalysis::Write(const TransientResult &res, io::H5Writer
   PetscCall(out.WriteAttribute("/transient", "period_scatter", summ[11]));
   PetscCall(out.WriteAttribute("/transient", "signal_dof", (PetscInt)summ[12]));
   PetscCall(out.WriteAttribute("/transient", "period_multiple", (PetscInt)summ[13]));
+  PetscCall(out.WriteAttribute("/transient", "return_floor", summ[14]));
   PetscCall(out.WriteAttribute("/transient", "period", summ[0]));
   PetscCall(out.WriteAttribute("/transient", "mean_fp_iterations", summ[1]));
   PetscCall(out.WriteAttribute("/transient", "fraction_separated", summ[2]));

@@ -422,3 +422,20 @@ TEST(Verdicts, PeriodTwoMotionReadsTheStatePeriod)
   EXPECT_NEAR(s.period / (2 * kPeriod), 1.0, 1e-7);
   EXPECT_TRUE(s.settled) << TrendName(s.trend);
 }
+
+TEST(Verdicts, CoarseRecordsOfACleanCycleAreSettled)
+{
+  // 12.4 records per period (above the aliasing limit of 8): the state's return cannot be checked
+  // to 1e-3 between such records; its interpolation error is the bound, and the cycle is settled.
+  TransientResult r = Records(1, kPeriod, 150, 12.37, [&](double t, double *x, double *v) {
+    x[0] = std::sin(kOmega * t) + 0.3 * std::sin(2 * kOmega * t + 0.3);
+    v[0] = kOmega * (std::cos(kOmega * t) + 0.6 * std::cos(2 * kOmega * t + 0.3));
+  });
+  TransientAnalysis::Summarise(r, 1e-3, 5);
+  const TransientSummary &s = r.summary;
+  std::printf("12.37 records per period: %s, period %+.1e, return error %.1e (interpolation %.1e), peak-to-peak change %.1e\n",
+              TrendName(s.trend), s.period / kPeriod - 1, s.return_error, s.return_floor, s.amplitude_change);
+  EXPECT_TRUE(s.settled) << TrendName(s.trend);
+  EXPECT_LT(s.return_error, s.return_floor);
+  EXPECT_NEAR(s.period / kPeriod, 1.0, 1e-4);
+}

@@ -29,10 +29,11 @@ namespace squeal {
 // state (U, dU / omega) returns only after that many. Per cycle: period, peak-to-peak, and the
 // state's return error. Settled: over the last -transient_settle_periods + 1 cycles the period
 // and the peak-to-peak change and the state returns by less than -transient_settle_tol
-// (relative). Otherwise the trend: growing / decaying when the peak-to-peak's fitted change per
-// period dominates its cycle-to-cycle scatter, irregular when the scatter (peak-to-peak, period
-// or state return) exceeds the tolerance without such a trend, drifting otherwise. Records
-// coarser than 1/8 of the period (or of the linear period) cannot resolve the cycle: "aliased".
+// (relative; the return, by less than its interpolation error between records when that is
+// larger). Otherwise the trend: growing / decaying when the peak-to-peak's fitted change per
+// period dominates its cycle-to-cycle scatter, irregular when the scatter (peak-to-peak or
+// period) exceeds the tolerance without such a trend, drifting otherwise. Records coarser than
+// 1/8 of the period (or of the linear period) cannot resolve the cycle: "aliased".
 enum class Trend { Settled = 0, Growing, Decaying, Drifting, Aliased, TooShort, NoOscillation, Irregular };
 const char *TrendName(Trend t);
 
@@ -44,6 +45,7 @@ struct TransientSummary {
   PetscReal              period_change = 0;  // (max - min) / mean of the cycle periods (last settle_periods + 1 cycles)
   PetscReal              amplitude_change = 0; // (max - min) / max of the peak-to-peak per cycle (same cycles)
   PetscReal              return_error = 0;     // max over the same cycles of |Z(t + T) - Z(t)| / mean |Z|, Z = (U - mean, dU / omega)
+  PetscReal              return_floor = 0;     // its interpolation error between records (estimate): the check's resolution
   PetscReal              amplitude_scatter = 0; // std of log(peak-to-peak) about its fitted trend, cycles in the last 20 %
   PetscReal              period_scatter = 0;    // std / mean of the cycle periods, cycles in the last 20 %
   PetscInt               cycles = 0;         // complete cycles in the last 20 %
