@@ -32,7 +32,7 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
                             "TransientAnalysis", keep_every, &keep_every, &keep_every_set));
   SquealOptionsReal("-max_memory", "Budget for the records on rank 0 and in the file (MiB; 0: a quarter of physical memory)",
                     "TransientAnalysis", &max_memory, Range::NonNegative(), checks);
-  SquealOptionsReal("-settle_tol", "Settled: period and peak-to-peak change by less than this (relative) over the last cycles",
+  SquealOptionsReal("-settle_tol", "Settled: period, peak-to-peak and state change by less than this (relative) over the last cycles",
                     "TransientAnalysis", &settle_tol, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-settle_periods", "Cycles over which the settled test looks", "TransientAnalysis", settle_periods,
                             &settle_periods, nullptr));
