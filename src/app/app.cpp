@@ -272,6 +272,7 @@ PetscErrorCode RunApp(int argc, char **argv)
         PetscCall(continuation.Write(cres, out)); // the branch computed so far, also after an error
         PetscCall(cerr);
         PetscCall(continuation.View(cres, PETSC_VIEWER_STDOUT_(comm)));
+        PetscCall(Checkpoint(comm, out, cres.interrupted ? "the continuation points so far" : "the continuation"));
       }
     }
   }

@@ -1,5 +1,6 @@
 #include "squeal/continuation/continuation.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
@@ -114,6 +115,17 @@ PetscErrorCode Continuation::SetParam(Model &model, PetscReal v) const
   PetscFunctionBeginUser;
   if (param == "mu") model.contacts.mu = v;
   else model.contacts.V = v;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Continuation::SetParamAt(PetscReal v, PetscReal T)
+{
+  PetscFunctionBeginUser;
+  PetscCall(SetParam(*model_, v));
+  // The contact solver copies the sliding speeds V_c at set-up, and Shooting sets the integrator up
+  // only when the period changes: a new V at the same T would flow with the old speeds (dH/dV = 0,
+  // the bordered system singular). Set up at h = T / N_s, the step the next flow at T uses.
+  if (param == "v") PetscCall(ti_->SetUp(*model_, T / shoot_->steps));
   PetscFunctionReturn(0);
 }
 
@@ -256,13 +268,18 @@ PetscErrorCode Continuation::Corrector(const State &last, const State &pred, con
   // re-anchoring at every iterate (as Shooting::Solve does) lets the phase drift along the orbit
   // from point to point, and on small cycles that drift is as large as the amplitude change, so
   // the secant loses the branch (seen near mu_c on case 1: the branch retraced itself).
-  PetscCall(SetParam(*model_, last.lambda));
+  PetscCall(SetParamAt(last.lambda, last.T));
   PetscCall(shoot_->Pack(last.U, last.dU, last.T, x_));
   PetscCall(shoot_->SetAnchor(x_));
   ++flows_;
   for (PetscInt k = 0; k < max_it; ++k) {
     PetscReal nf, nU, ndU, a, dl, dT;
-    PetscCall(SetParam(*model_, y.lambda));
+    PetscCall(InterruptRequested(comm_, &interrupted_));
+    if (interrupted_) {
+      why = std::string("interrupted by ") + InterruptSignalName();
+      PetscFunctionReturn(0);
+    }
+    PetscCall(SetParamAt(y.lambda, y.T));
     PetscCall(shoot_->Pack(y.U, y.dU, y.T, x_));
     PetscCall(shoot_->Residual(x_, f_));
     ++flows_;
@@ -282,9 +299,9 @@ PetscErrorCode Continuation::Corrector(const State &last, const State &pred, con
     }
     // dH/dlambda at fixed (Z0, T); the phase row does not depend on lambda.
     const PetscReal el = shoot_->fd_step * std::max(std::abs(y.lambda), sl_);
-    PetscCall(SetParam(*model_, y.lambda + el));
+    PetscCall(SetParamAt(y.lambda + el, y.T));
     PetscCall(shoot_->Residual(x_, fl_));
-    PetscCall(SetParam(*model_, y.lambda));
+    PetscCall(SetParamAt(y.lambda, y.T));
     ++flows_;
     PetscCall(VecAXPY(fl_, -1.0, f_));
     PetscCall(VecScale(fl_, 1.0 / el));
@@ -381,6 +398,12 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
   PetscReal amp_start = -1;
   while ((PetscInt)pts.size() < max_steps) {
     PetscReal nt;
+    // SIGINT/SIGTERM: stop between points; the points so far are the result.
+    PetscCall(InterruptRequested(comm_, &interrupted_));
+    if (interrupted_) {
+      end = std::string("interrupted by ") + InterruptSignalName();
+      break;
+    }
     // Unit tangent: the secant of the last two points, or a pure parameter step at the start.
     if (!have_prev) {
       PetscCall(VecZeroEntries(t.U));
@@ -452,6 +475,10 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
     }
     bool ok = false;
     if (why.empty()) PetscCall(Polish(y, pt, nullptr, &ok, why));
+    if (interrupted_) {
+      end = std::string("interrupted by ") + InterruptSignalName();
+      break;
+    }
     if (!ok) {
       ++halvings_;
       if (h / 2 < ds_min) {
@@ -503,6 +530,7 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   res                    = ContinuationResult{};
   res.param_name         = param;
   step_count_ = halvings_ = flows_ = 0;
+  interrupted_            = false;
   const PetscReal lambda0 = GetParam(model);
   PetscCheck(lambda0 >= lmin && lambda0 <= lmax, comm_, kErrInput,
              "continuation: the scene's %s = %g is outside [-cont_min, -cont_max] = [%g, %g]; widen the range", param.c_str(),
@@ -560,8 +588,10 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     PetscCall(Leg(-1, s0, down, sdown, end_down));
     PetscCall(PetscPrintf(comm_, "cont: leg towards %s = %g: %zu point(s), %s\n", param.c_str(), (double)lmin, down.size(), end_down.c_str()));
   }
-  PetscCall(Leg(+1, s0, up, sup, end_up));
-  PetscCall(PetscPrintf(comm_, "cont: leg towards %s = %g: %zu point(s), %s\n", param.c_str(), (double)lmax, up.size(), end_up.c_str()));
+  if (!interrupted_) {
+    PetscCall(Leg(+1, s0, up, sup, end_up));
+    PetscCall(PetscPrintf(comm_, "cont: leg towards %s = %g: %zu point(s), %s\n", param.c_str(), (double)lmax, up.size(), end_up.c_str()));
+  } else end_up = "not started (interrupted)";
   states_.clear();
   for (size_t i = down.size(); i-- > 0;) {
     res.points.push_back(down[i]);
@@ -579,6 +609,7 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   PetscCall(Detect(res));
   PetscCall(SetParam(model, lambda0));
   res.halvings         = halvings_;
+  res.interrupted      = interrupted_;
   res.flow_evaluations = flows_;
   PetscCall(PetscTime(&t1));
   res.seconds = t1 - t0;
@@ -589,7 +620,7 @@ PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &
 {
   const size_t i = (size_t)ev.point;
   PetscFunctionBeginUser;
-  if (!(locate_tol > 0)) PetscFunctionReturn(0);
+  if (!(locate_tol > 0) || interrupted_) PetscFunctionReturn(0);
   const bool sep = ev.type == "lift-off" || ev.type == "separation-ends";
   auto       flag = [&](const ContinuationPoint &p) { return sep ? Separates(p) : Sticks(p); };
   const bool flo  = flag(res.points[i - 1]);
@@ -613,6 +644,10 @@ PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &
     g.lambda = mid;
     PetscInt its;
     PetscCall(Corrector(states_[i - 1], g, t, y, &its, why));
+    if (interrupted_) {
+      ev.detail += "; bisection stopped: " + why;
+      break;
+    }
     ok = why.empty();
     if (ok) PetscCall(Polish(y, pt, nullptr, &ok, why));
     if (!ok) {
@@ -765,6 +800,7 @@ PetscErrorCode Continuation::Write(const ContinuationResult &res, io::H5Writer &
   PetscCall(out.WriteAttribute("/continuation", "step_halvings", res.halvings));
   PetscCall(out.WriteAttribute("/continuation", "flow_evaluations", res.flow_evaluations));
   PetscCall(out.WriteAttribute("/continuation", "seconds", res.seconds));
+  PetscCall(out.WriteAttribute("/continuation", "interrupted", (PetscInt)res.interrupted));
   std::string legs;
   for (auto &e : res.leg_end) legs += (legs.empty() ? "" : "; ") + e;
   PetscCall(out.WriteAttribute("/continuation", "leg_end", legs.c_str()));

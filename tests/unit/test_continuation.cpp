@@ -1,7 +1,8 @@
 // Continuation of the limit cycle in mu (issue 11): every point against a stand-alone shooting run
 // from the energy estimate at its mu and against a transient; the 3-DOF branches from the Hopf
 // point (mu_c by bisection on the linear stability) to mu = 0.6 with their regime changes checked
-// by stand-alone shooting on both sides; a failed step halves the step and keeps the branch.
+// by stand-alone shooting on both sides; the branch in V at fixed mu; a failed step halves the
+// step and keeps the branch.
 #include "squeal/continuation/continuation.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
@@ -24,7 +25,7 @@ struct Problem {
   Shooting           sh{PETSC_COMM_WORLD};
   ShootingResult     sr;
   PetscErrorCode     err = 0;
-  Problem(PetscReal V, PetscReal mu, PetscReal eps = 1e-5)
+  Problem(PetscReal V, PetscReal mu, PetscReal eps = 1e-5, PetscInt steps = 0)
   {
     ThreeDofParams p;
     p.V = V, p.mu = mu;
@@ -39,6 +40,7 @@ struct Problem {
     PetscCallAbort(PETSC_COMM_WORLD, ti.SetFromOptions());
     PetscCallAbort(PETSC_COMM_WORLD, sh.SetFromOptions());
     sh.eps1 = sh.eps2 = eps;
+    if (steps > 0) sh.steps = steps;
     err = sh.Solve(model, eq, ti, est.U0, est.dU0, est.T0, sr);
   }
 };
@@ -81,10 +83,47 @@ const ContinuationEvent *Find(const ContinuationResult &r, const char *type)
 
 } // namespace
 
-TEST(Continuation, PointsAgreeWithStandAloneShootingAndTheTransient)
+TEST(Continuation, PointsAgreeWithStandAloneShootingTo1e8)
 {
-  // Tight tolerances: the continuation's points and the stand-alone runs (from the energy
-  // estimate at each mu, a different start) must then agree on the period to 1e-8.
+  // The discrete period map has a one-parameter family of fixed points (Z0, T) along the orbit
+  // (the phase), and on it T varies with where the status changes fall within a step: measured
+  // spread of T over starts of the stand-alone run (q_scale 0.7-1.3) 2.9e-7 / 8.6e-7 (case 1 / 2)
+  // at N_s = 1000 steps, 1.1e-8 / 3.1e-8 at 4000, 2e-10 (16000) / 2e-9 (8000). The branch's points
+  // (phase anchored to the previous point) and the stand-alone runs (phase of the energy estimate)
+  // sit at different phases: branch against stand-alone measured up to 1.8e-8 at N_s = 8000 and
+  // 2.4e-9 at 16000, so the 1e-8 check of issue 11 runs at N_s = 16000. Shooting and corrector
+  // tolerances (1e-10) are far below it; the same h = T / N_s in both runs.
+  // One rank only: 16000-step flows are replicated on every rank of the dense back end, and a
+  // 2-rank run pays a collective per step (this test took > 7 min on 2 loaded ranks against 11 s
+  // on one); the 2-rank suite checks the other Continuation tests.
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  if (size > 1) GTEST_SKIP() << "single-rank test (16000-step flows)";
+  const PetscInt steps = 16000;
+  for (PetscReal V : {3.0, 0.75}) {
+    Problem pr(V, 0.5, 1e-10, steps);
+    ASSERT_EQ(pr.err, 0) << "V = " << V;
+    Continuation c(PETSC_COMM_WORLD);
+    ASSERT_EQ(c.SetFromOptions(), 0);
+    c.both = PETSC_FALSE, c.lmax = 0.56, c.max_steps = 6, c.equilibrium = PETSC_FALSE, c.locate_tol = 0;
+    ContinuationResult res;
+    ASSERT_EQ(RunBranch(pr, c, res), 0);
+    ASSERT_GE(res.points.size(), 3u);
+    EXPECT_EQ(res.points.back().param, 0.56);
+    for (size_t i : {(size_t)1, res.points.size() / 2 + 1, res.points.size() - 1}) {
+      const ContinuationPoint &p = res.points[i];
+      Problem                  alone(V, p.param, 1e-10, steps);
+      ASSERT_EQ(alone.err, 0) << "V = " << V << ", mu = " << p.param;
+      PetscPrintf(PETSC_COMM_WORLD, "V = %g, mu = %.6f: |dT|/T = %.2e against the stand-alone run\n", (double)V, (double)p.param,
+                  (double)std::abs(alone.sr.period / p.period - 1.0));
+      EXPECT_LE(std::abs(alone.sr.period / p.period - 1.0), 1e-8) << "V = " << V << ", mu = " << p.param;
+      EXPECT_EQ(alone.sr.stable_cycle, p.stable_cycle);
+    }
+  }
+}
+
+TEST(Continuation, AStablePointAgreesWithTheTransient)
+{
   Problem pr(3.0, 0.5, 1e-10);
   ASSERT_EQ(pr.err, 0);
   Continuation c(PETSC_COMM_WORLD);
@@ -93,19 +132,14 @@ TEST(Continuation, PointsAgreeWithStandAloneShootingAndTheTransient)
   ContinuationResult res;
   ASSERT_EQ(RunBranch(pr, c, res), 0);
   ASSERT_GE(res.points.size(), 3u);
-  EXPECT_EQ(res.points.back().param, 0.56);
-  for (size_t i : {res.points.size() / 2, res.points.size() - 1}) {
-    const ContinuationPoint &p = res.points[i];
-    Problem                  alone(3.0, p.param, 1e-10);
+  // At 1000 steps the stand-alone run agrees to the phase spread above (measured 2.7e-7, 3.2e-8).
+  const ContinuationPoint &p = res.points[res.points.size() / 2];
+  {
+    Problem alone(3.0, p.param, 1e-10);
     ASSERT_EQ(alone.err, 0) << "mu = " << p.param;
-    // Measured 2.7e-7 and 3.2e-8: the discrete orbit (N_s = 1000 steps) depends on where its
-    // status changes fall within steps, i.e. on the phase of Z0, which differs between the two
-    // runs (branch: anchored to the previous point; stand-alone: the energy estimate's phase).
     EXPECT_NEAR(alone.sr.period / p.period, 1.0, 1e-6) << "mu = " << p.param;
-    EXPECT_EQ(alone.sr.stable_cycle, p.stable_cycle);
   }
   // A stable point: the transient settles on the same period (at the same step h = T / N_s).
-  const ContinuationPoint &p = res.points[res.points.size() / 2];
   ASSERT_TRUE(p.stable_cycle);
   Problem           at(3.0, p.param);
   TransientAnalysis ta(PETSC_COMM_WORLD);
@@ -118,7 +152,9 @@ TEST(Continuation, PointsAgreeWithStandAloneShootingAndTheTransient)
   ASSERT_EQ(ta.Run(at.model, at.eq, at.stab, ti2, tr), 0);
   PetscMPIInt rank;
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
-  if (rank == 0) EXPECT_NEAR(tr.summary.period / p.period, 1.0, 1e-4);
+  if (rank == 0) {
+    EXPECT_NEAR(tr.summary.period / p.period, 1.0, 1e-4);
+  }
 }
 
 TEST(Continuation, ThreeDofBranchesFromTheHopfPointToMu06WithTheirRegimeChanges)
@@ -161,6 +197,51 @@ TEST(Continuation, ThreeDofBranchesFromTheHopfPointToMu06WithTheirRegimeChanges)
     // Every point of these branches is stable (measured: largest non-trivial |L| < 1).
     for (auto &p : res.points) EXPECT_TRUE(p.stable_cycle) << "mu = " << p.param;
   }
+}
+
+TEST(Continuation, BranchInVAtFixedMuWithItsRegimeChanges)
+{
+  // Case 2's stick-slip cycle at mu = 0.5 continued in V from 0.75 up to 2: separation appears
+  // (measured V = 1.1833) and stick disappears (1.7097) on the way to case 1's regime. Each
+  // change is confirmed by stand-alone shooting from the energy estimate on both sides.
+  // One rank only (5 s there; > 300 s on 2 ranks under a load of 12): the 2-rank path of the
+  // corrector is the same for mu and V, and the mu tests run on 2 ranks.
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  if (size > 1) GTEST_SKIP() << "single-rank test";
+  Problem pr(0.75, 0.5);
+  ASSERT_EQ(pr.err, 0);
+  Continuation c(PETSC_COMM_WORLD);
+  ASSERT_EQ(c.SetFromOptions(), 0);
+  c.param = "v", c.lmin = 0.5, c.lmax = 2.0, c.both = PETSC_FALSE, c.equilibrium = PETSC_FALSE;
+  ContinuationResult res;
+  ASSERT_EQ(RunBranch(pr, c, res), 0);
+  EXPECT_EQ(res.param_name, "v");
+  ASSERT_GE(res.points.size(), 10u);
+  EXPECT_EQ(res.points.back().param, 2.0);
+  EXPECT_EQ(pr.model.contacts.V, 0.75) << "the model's V is restored";
+  for (size_t i = 1; i < res.points.size(); ++i) EXPECT_GT(res.points[i].param, res.points[i - 1].param);
+  struct Change {
+    const char *type;
+    bool        sep, before; // the fraction that changes, and whether it is non-zero below the event
+  } changes[] = {{"lift-off", true, false}, {"stick-ends", false, true}};
+  for (const Change &ch : changes) {
+    const ContinuationEvent *e = Find(res, ch.type);
+    ASSERT_NE(e, nullptr) << ch.type;
+    EXPECT_LT(e->hi - e->lo, 2 * c.locate_tol) << ch.type << ": located by bisection";
+    Problem below(e->lo - 0.01, 0.5), above(e->hi + 0.01, 0.5);
+    ASSERT_EQ(below.err, 0);
+    ASSERT_EQ(above.err, 0);
+    PetscReal f[2] = {ch.sep ? below.sr.frac_separated : below.sr.frac_stuck, ch.sep ? above.sr.frac_separated : above.sr.frac_stuck};
+    MPI_Bcast(f, 2, MPIU_REAL, 0, PETSC_COMM_WORLD);
+    EXPECT_EQ(f[0] > 0, ch.before) << ch.type << " at V = " << e->lo - 0.01;
+    EXPECT_EQ(f[1] > 0, !ch.before) << ch.type << " at V = " << e->hi + 0.01;
+  }
+  // A point of the branch against the stand-alone run at its V (1000 steps: the phase spread).
+  const ContinuationPoint &p = res.points[res.points.size() / 2];
+  Problem                  alone(p.param, 0.5, 1e-10);
+  ASSERT_EQ(alone.err, 0);
+  EXPECT_NEAR(alone.sr.period / p.period, 1.0, 1e-6) << "V = " << p.param;
 }
 
 TEST(Continuation, AFailedStepHalvesTheStepAndKeepsTheBranch)

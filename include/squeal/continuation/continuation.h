@@ -22,6 +22,8 @@
 // complex pair: Neimark-Sacker), monodromy jumps (a non-trivial multiplier modulus changes by more
 // than -cont_jump_tol between neighbours), equilibrium stability changes (Hopf point, mu_c) and the
 // coexistence of a stable cycle and a stable equilibrium (hysteresis).
+// SIGINT/SIGTERM (core/interrupt.h) are polled before every point and every corrector iteration:
+// the run stops there, keeps the points so far (res.interrupted), and the caller writes them.
 #pragma once
 
 #include "squeal/io/h5.h"
@@ -65,6 +67,7 @@ struct ContinuationResult {
   std::vector<std::string>       leg_end;    // why each leg stopped
   PetscInt                       halvings = 0, flow_evaluations = 0;
   PetscReal                      seconds = 0;
+  bool                           interrupted = false; // SIGINT/SIGTERM stopped the run between points
 };
 
 class Continuation {
@@ -101,6 +104,7 @@ private:
   friend struct ContinuationCallbacks;
   PetscErrorCode SetParam(Model &model, PetscReal v) const;
   PetscReal      GetParam(const Model &model) const;
+  PetscErrorCode SetParamAt(PetscReal v, PetscReal T); // the parameter for a flow of period T
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
   // Shooting::Solve at y.lambda from y, with the equilibrium (and its stability) there.
   PetscErrorCode Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why);
@@ -124,6 +128,7 @@ private:
   Shooting          *shoot_ = nullptr;
   PetscReal          su_ = 1, sdu_ = 1, sT_ = 1, sl_ = 1; // scales of the arclength norm
   PetscInt           step_count_ = 0, halvings_ = 0, flows_ = 0;
+  bool               interrupted_ = false;
   std::vector<State> states_; // per point of the branch, for the secants and the bisections
   // Corrector work space.
   VecH     x_, f_, fl_, xp_, fp_, vx_, rhs_, dy_;

@@ -1,0 +1,136 @@
+#!/usr/bin/env python3
+"""Checks of the continuation's results file (issue 11).
+
+  check_continuation.py interrupt --output F [--signal INT|TERM] [--after-points K] -- cmd...
+      Starts cmd (with -cont_monitor), waits for the K-th point line of the first leg (default 3),
+      sends the signal, and checks: exit code in 1..127, stderr names the signal and F, root status
+      "interrupted ...", /continuation holds at least K + 1 points (start included) with finite
+      periods, attribute interrupted = 1.
+  check_continuation.py branch --output F --param mu|v --min A --max B [--event TYPE[@LO:HI]]... -- cmd...
+      Runs cmd (exit 0), then checks /continuation: parameter name, points within [A, B] reaching
+      both ends, finite positive periods, and every listed event present (located inside [LO, HI]).
+"""
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+
+failed = False
+
+
+def ok(cond, msg):
+    global failed
+    print(("ok   " if cond else "FAIL ") + msg)
+    failed = failed or not cond
+    return cond
+
+
+def parse(argv):
+    if "--" not in argv:
+        sys.exit("usage: see the docstring")
+    i = argv.index("--")
+    opts, cmd = argv[:i], argv[i + 1:]
+    args = {"events": []}
+    k = 1
+    while k < len(opts):
+        if opts[k] == "--event":
+            args["events"].append(opts[k + 1])
+        else:
+            args[opts[k]] = opts[k + 1]
+        k += 2
+    return opts[0], args, cmd
+
+
+def status(f):
+    s = f.attrs.get("status", b"")
+    return s.decode() if isinstance(s, bytes) else str(s)
+
+
+def attr(g, name):
+    v = g.attrs.get(name)
+    return v.decode() if isinstance(v, bytes) else v
+
+
+def interrupt(args, cmd):
+    out = args["--output"]
+    if os.path.exists(out):
+        os.remove(out)
+    sig = signal.SIGTERM if args.get("--signal", "INT") == "TERM" else signal.SIGINT
+    name = "SIGTERM" if sig == signal.SIGTERM else "SIGINT"
+    k = int(args.get("--after-points", "3"))
+    print("+ " + " ".join(cmd))
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
+    pat = re.compile(r"^cont [+-]\s*%d:" % k)
+    seen = []
+    for line in p.stdout:
+        seen.append(line)
+        if pat.search(line):
+            break
+    ok(p.poll() is None, f"still running after point {k}")
+    t0 = time.time()
+    p.send_signal(sig)
+    rest, err = p.communicate(timeout=120)
+    print("".join(seen) + rest)
+    print("--- stderr:\n" + err)
+    print(f"stopped {time.time() - t0:.2f} s after {name}")
+    ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127")
+    ok(re.search(r"^squeal: error: interrupted by " + name, err, re.M) is not None, f"stderr says 'interrupted by {name}'")
+    ok(out in err, "the message names the results file")
+    if not ok(os.path.exists(out), f"{out} exists"):
+        return
+    with h5py.File(out, "r") as f:
+        ok(status(f).startswith("interrupted (" + name), f"root status '{status(f)}'")
+        if not ok("continuation/param" in f, "has /continuation/param"):
+            return
+        lam = np.asarray(f["continuation/param"][()])
+        T = np.asarray(f["continuation/period"][()])
+        ok(lam.size >= k + 1, f"{lam.size} points kept (>= {k + 1})")
+        ok(np.all(np.isfinite(T)) and np.all(T > 0), "periods finite and positive")
+        ok(int(f["continuation"].attrs["interrupted"]) == 1, "/continuation interrupted = 1")
+        ok(name in attr(f["continuation"], "leg_end"), f"leg_end '{attr(f['continuation'], 'leg_end')}' names {name}")
+
+
+def branch(args, cmd):
+    out = args["--output"]
+    if os.path.exists(out):
+        os.remove(out)
+    print("+ " + " ".join(cmd))
+    p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    print(p.stdout[-6000:])
+    print("--- stderr:\n" + p.stderr)
+    if not ok(p.returncode == 0, f"exit code {p.returncode}"):
+        return
+    lo, hi = float(args["--min"]), float(args["--max"])
+    with h5py.File(out, "r") as f:
+        g = f["continuation"]
+        ok(attr(g, "parameter") == args["--param"], f"parameter '{attr(g, 'parameter')}'")
+        lam = np.asarray(g["param"][()])
+        T = np.asarray(g["period"][()])
+        ok(lam.min() >= lo - 1e-12 and lam.max() <= hi + 1e-12, f"points in [{lo}, {hi}]: [{lam.min()}, {lam.max()}]")
+        ok(abs(lam.min() - lo) < 1e-12 and abs(lam.max() - hi) < 1e-12, "both ends of the range reached")
+        ok(np.all(np.isfinite(T)) and np.all(T > 0), "periods finite and positive")
+        types = attr(g["events"], "types").split(",") if "events" in g else []
+        ep = np.asarray(g["events/param"][()]) if "events/param" in g else np.array([])
+        for e in args["events"]:
+            t, _, rng = e.partition("@")
+            idx = [i for i, s in enumerate(types) if s == t]
+            if not ok(len(idx) > 0, f"event {t} reported (events: {types})"):
+                continue
+            if rng:
+                a, b = map(float, rng.split(":"))
+                ok(any(a <= ep[i] <= b for i in idx), f"event {t} at {[float(ep[i]) for i in idx]} in [{a}, {b}]")
+
+
+def main():
+    mode, args, cmd = parse(sys.argv[1:])
+    {"interrupt": interrupt, "branch": branch}[mode](args, cmd)
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
