@@ -257,6 +257,8 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             &max_modes_, nullptr));
   PetscCall(PetscOptionsBool("-sparse_rhs", "Constraint modes from the sparse right-hand sides -K_IB (MUMPS ICNTL(20) = 1) instead of a dense block",
                              "CraigBampton", sparse_rhs_, &sparse_rhs_, nullptr));
+  PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
+                             "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
                              "CraigBampton", rayleigh_, &rayleigh_, nullptr));
   PetscOptionsEnd();
@@ -370,7 +372,37 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(PetscLogStagePush(stages.modes));
   std::vector<PetscReal> lam;
   PetscInt               nconv = 0;
-  if (nmodes_ != 0) {
+  // With a cut-off alone, the count of modes below it is the number of negative pivots of
+  // K_II - (2 pi fmax)^2 M_II (Sylvester's inertia; one more factorisation): one solve then asks
+  // for exactly those, instead of solving again and again with a growing request.
+  bool counted = false;
+  if (fmax_ > 0 && nmodes_ < 0 && count_modes_) {
+    MatH     A, F;
+    PetscInt nneg = 0;
+    PetscCall(MatDuplicate(Kii, MAT_COPY_VALUES, A.out()));
+    PetscCall(MatAXPY(A, -w2max, Mii, UNKNOWN_NONZERO_PATTERN));
+    PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
+    MatFactorInfo finfo;
+    PetscCall(MatFactorInfoInitialize(&finfo));
+    PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, F.out()));
+    PetscCall(MatMumpsSetIcntl(F, 13, 1)); // the root node factorised without ScaLAPACK, so its pivots count
+    PetscCall(MatCholeskyFactorSymbolic(F, A, nullptr, &finfo));
+    PetscCall(MatCholeskyFactorNumeric(F, A, &finfo));
+    MatFactorError ferr;
+    PetscCall(MatFactorGetError(F, &ferr));
+    if (ferr == MAT_FACTOR_NOERROR) {
+      PetscCall(MatGetInertia(F, &nneg, nullptr, nullptr));
+      counted = true;
+      if (nneg > PetscMin(max_modes_, nI))
+        PetscCall(PetscPrintf(comm,
+                              "reduction: warning: %" PetscInt_FMT " fixed-interface modes lie below %g Hz, more than -%smax_modes = %" PetscInt_FMT
+                              "; only the lowest %" PetscInt_FMT " are kept: raise -%smax_modes or lower -%sfmax\n",
+                              nneg, (double)fmax_, prefix_.c_str(), max_modes_, PetscMin(max_modes_, nI), prefix_.c_str(), prefix_.c_str()));
+      nev = PetscMin(nneg, PetscMin(max_modes_, nI));
+      if (nev > 0) PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+    } // else (a mode at the cut-off itself): the growing requests below
+  }
+  if (nmodes_ != 0 && !(counted && nev == 0)) {
     for (;;) {
       PetscCall(EPSSolve(eps));
       PetscCall(EPSGetConverged(eps, &nconv));
@@ -386,7 +418,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
       // rather than doubled step by step.
       const PetscReal lmax  = nconv > 0 ? *std::max_element(lam.begin(), lam.end()) : 0;
       const bool      above = nconv > 0 && lmax > w2max;
-      if (nmodes_ > 0 || fmax_ <= 0 || above || nev >= PetscMin(max_modes_, nI)) break;
+      if (counted || nmodes_ > 0 || fmax_ <= 0 || above || nev >= PetscMin(max_modes_, nI)) break;
       PetscInt next = 2 * nev;
       if (nconv > 0 && lmax > 0) next = PetscMax(next, (PetscInt)std::ceil(1.25 * nconv * (w2max / lmax)));
       nev = PetscMin(next, PetscMin(max_modes_, nI));
@@ -398,7 +430,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   std::sort(keep.begin(), keep.end(), [&](PetscInt a, PetscInt b) { return lam[a] < lam[b]; });
   while (!keep.empty() && lam[keep.back()] > w2max) keep.pop_back();
   if (nmodes_ > 0 && (PetscInt)keep.size() > nmodes_) keep.resize(nmodes_);
-  if (fmax_ > 0 && nmodes_ < 0 && nconv > 0 && *std::max_element(lam.begin(), lam.end()) <= w2max)
+  if (!counted && fmax_ > 0 && nmodes_ < 0 && nconv > 0 && *std::max_element(lam.begin(), lam.end()) <= w2max)
     PetscCall(PetscPrintf(comm,
                           "reduction: warning: %" PetscInt_FMT " modes (-%smax_modes) do not reach the cut-off %g Hz; raise "
                           "-%smax_modes\n",

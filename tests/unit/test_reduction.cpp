@@ -218,8 +218,9 @@ TEST(Reduction, DistributedReductionMatchesTheSerialOne)
 
 TEST(Reduction, RayleighShortcutEqualsTheProjectionOfC)
 {
-  // The pad's C = b K (+ a M): reduced as a M_r + b K_r by default, against the projection
-  // T^T C T of the general path. A C that is not Rayleigh must not take the shortcut.
+  // The pad's C = a M + b K. The general path projects C: T^T C T must equal a M_r + b K_r, which
+  // is what the shortcut (default) returns. Compared within one reduction (one basis: on 2 ranks
+  // MUMPS may rotate a near-degenerate pair of modes between two reductions).
   PadParams p = SmallPad();
   p.ray_a     = 30.0; // both terms, so the fit of a and b is exercised
   Model full;
@@ -231,20 +232,24 @@ TEST(Reduction, RayleighShortcutEqualsTheProjectionOfC)
     ASSERT_EQ(cb.Reduce(m, red), 0);
     info = cb.Info();
   };
+  auto rayleigh_residual = [&](const Model &red) {
+    MatH      D;
+    PetscReal nd, nc;
+    EXPECT_EQ(MatDuplicate(red.C, MAT_COPY_VALUES, D.out()), 0);
+    EXPECT_EQ(MatAXPY(D, -p.ray_a, red.M, DIFFERENT_NONZERO_PATTERN), 0);
+    EXPECT_EQ(MatAXPY(D, -p.ray_b, red.K, DIFFERENT_NONZERO_PATTERN), 0);
+    EXPECT_EQ(MatNorm(D, NORM_FROBENIUS, &nd), 0);
+    EXPECT_EQ(MatNorm(red.C, NORM_FROBENIUS, &nc), 0);
+    return nd / nc;
+  };
   Model         a, b;
   ReductionInfo ia, ib;
-  reduce(full, true, a, ia);
   reduce(full, false, b, ib);
-  EXPECT_TRUE(ia.rayleigh);
   EXPECT_FALSE(ib.rayleigh);
-  ASSERT_EQ(ia.n_modes, ib.n_modes);
-  MatH      D;
-  PetscReal nd, nc;
-  ASSERT_EQ(MatDuplicate(b.C, MAT_COPY_VALUES, D.out()), 0);
-  ASSERT_EQ(MatAXPY(D, -1.0, a.C, DIFFERENT_NONZERO_PATTERN), 0);
-  ASSERT_EQ(MatNorm(D, NORM_FROBENIUS, &nd), 0);
-  ASSERT_EQ(MatNorm(b.C, NORM_FROBENIUS, &nc), 0);
-  EXPECT_LT(nd, 1e-12 * nc);
+  EXPECT_LT(rayleigh_residual(b), 1e-12); // the projection of C
+  reduce(full, true, a, ia);
+  EXPECT_TRUE(ia.rayleigh);
+  EXPECT_LT(rayleigh_residual(a), 1e-12); // the shortcut (fitted a, b; entries below 1e-13 of the diagonal dropped)
 
   // C + a small extra dashpot on one DOF: no longer a M + b K, so the projection is used.
   Model    other;

@@ -69,6 +69,7 @@ private:
   PetscInt      max_modes_ = 400;
   PetscBool     rayleigh_  = PETSC_TRUE;
   PetscBool     sparse_rhs_ = PETSC_TRUE;
+  PetscBool     count_modes_ = PETSC_TRUE;
   ReductionInfo info_;
 };
 
