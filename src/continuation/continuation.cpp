@@ -625,37 +625,55 @@ PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &
   auto       flag = [&](const ContinuationPoint &p) { return sep ? Separates(p) : Sticks(p); };
   const bool flo  = flag(res.points[i - 1]);
   PetscReal  lo = res.points[i - 1].param, hi = res.points[i].param;
-  State      g, t, y;
+  State      g, t, y, sol, slo, shi; // slo, shi: the solutions at the bracket ends
   PetscCall(Copy(states_[i - 1], g));
   PetscCall(Copy(states_[i - 1], t));
+  PetscCall(Copy(states_[i - 1], slo));
+  PetscCall(Copy(states_[i], shi));
   PetscCall(Create(y));
   PetscCall(VecZeroEntries(t.U));
   PetscCall(VecZeroEntries(t.dU));
   t.T = 0, t.lambda = sl_; // unit pure-parameter tangent: the corrector at fixed lambda
   for (int it = 0; it < 40 && std::abs(hi - lo) > locate_tol; ++it) {
     const PetscReal   mid = 0.5 * (lo + hi);
-    const PetscReal   s   = (mid - res.points[i - 1].param) / (res.points[i].param - res.points[i - 1].param);
     ContinuationPoint pt;
     bool              ok;
     std::string       why;
-    // Guess: the straight line between the two bracketing states.
-    PetscCall(Copy(states_[i - 1], g));
-    PetscCall(Axpby(g, s, states_[i], 1.0 - s));
+    // Guess: the straight line between the two bracketing solutions.
+    PetscCall(Copy(slo, g));
+    PetscCall(Axpby(g, 0.5, shi, 0.5));
     g.lambda = mid;
     PetscInt its;
-    PetscCall(Corrector(states_[i - 1], g, t, y, &its, why));
+    PetscCall(Corrector(slo, g, t, y, &its, why));
     if (interrupted_) {
       ev.detail += "; bisection stopped: " + why;
       break;
     }
     ok = why.empty();
-    if (ok) PetscCall(Polish(y, pt, nullptr, &ok, why));
+    if (ok) PetscCall(Polish(y, pt, &sol, &ok, why));
+    // At a kink of the branch the bordered corrector (difference products) can stall; plain
+    // shooting at the fixed parameter from either bracket end's solution (exact tangents) then
+    // decides the regime (case 1's lift-off: 12 corrector iterations without convergence).
+    for (State *from : {&slo, &shi}) {
+      if (ok) break;
+      std::string why2;
+      PetscCall(Copy(*from, g));
+      g.lambda = mid;
+      PetscCall(Polish(g, pt, &sol, &ok, why2));
+      if (!ok) why += std::string("; shooting from the ") + (from == &slo ? "lower" : "upper") + " end: " + why2;
+    }
     if (!ok) {
       ev.detail += "; bisection stopped: " + why;
       break;
     }
-    if (flag(pt) == flo) lo = mid;
-    else hi = mid;
+    sol.lambda = mid;
+    if (flag(pt) == flo) {
+      lo = mid;
+      PetscCall(Copy(sol, slo));
+    } else {
+      hi = mid;
+      PetscCall(Copy(sol, shi));
+    }
   }
   ev.lo = std::min(lo, hi), ev.hi = std::max(lo, hi), ev.param = 0.5 * (lo + hi);
   PetscFunctionReturn(0);

@@ -185,6 +185,8 @@ TEST(Continuation, ThreeDofBranchesFromTheHopfPointToMu06WithTheirRegimeChanges)
     // The regime change, confirmed by stand-alone shooting just outside its bracket.
     const ContinuationEvent *e = Find(res, cs.event);
     ASSERT_NE(e, nullptr) << "V = " << cs.V;
+    // Located by bisection (case 1's lift-off at the kink too: measured [0.143394, 0.143474]).
+    EXPECT_LT(e->hi - e->lo, 2 * c.locate_tol) << cs.event << " bracket [" << e->lo << ", " << e->hi << "]";
     const bool sep = std::string(cs.event) == "lift-off";
     const PetscReal mu_below = std::max(e->lo - 1e-3, 0.5 * (mu_c + e->lo)), mu_above = e->hi + 1e-3;
     Problem         below(cs.V, mu_below), above(cs.V, mu_above);
