@@ -58,7 +58,7 @@ private:
   MPI_Comm                            comm_;
   const ContactSet                   *cs_ = nullptr;
   PetscReal                           omega_ = 0, cphi_ = 0;
-  std::vector<PetscReal>              N_;
+  std::vector<PetscReal>              N_, speed_;           // per point: N_c, V_c
   std::vector<std::complex<PetscReal>> psi_, phit_, phib_; // per point
   std::vector<PetscReal>              cos_, sin_;           // samples of one period
 };
