@@ -3,6 +3,8 @@
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
+#include "squeal/energy/energy.h"
+#include "squeal/model/builders.h"
 
 #include <algorithm>
 #include <cmath>
@@ -84,6 +86,8 @@ PetscErrorCode Continuation::SetFromOptions()
   PetscCall(PetscOptionsBool("-both", "Both directions from the start point (else towards -cont_max only)", "Continuation", both,
                              &both, nullptr));
   PetscCall(PetscOptionsBool("-monitor", "One progress line per point", "Continuation", monitor, &monitor, nullptr));
+  PetscCall(PetscOptionsInt("-slices", "Parameter slices computed by groups of ranks, each from its own shooting solution at its upper end",
+                            "Continuation", slices, &slices, nullptr));
   PetscCall(PetscOptionsInt("-fail_step", "Testing: declare the corrector of this step failed once (-1: never)", "Continuation",
                             fail_step, &fail_step, nullptr));
   PetscOptionsEnd();
@@ -97,6 +101,7 @@ PetscErrorCode Continuation::SetFromOptions()
   PetscCheck(ds_min <= ds && ds <= ds_max, comm_, kErrInput, "options -cont_ds_min %g <= -cont_ds %g <= -cont_ds_max %g violated",
              (double)ds_min, (double)ds, (double)ds_max);
   PetscCheck(max_steps >= 1 && max_it >= 1, comm_, kErrInput, "options -cont_max_steps, -cont_max_it: expected >= 1");
+  PetscCheck(slices >= 1, comm_, kErrInput, "option -cont_slices = %" PetscInt_FMT ": expected >= 1", slices);
 
   PC pc;
   PetscCall(KSPCreate(comm_, ksp_.out()));
@@ -526,6 +531,12 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   PetscCall(PetscTime(&t0));
   PetscCheck(start.converged, comm_, PETSC_ERR_ARG_WRONGSTATE, "continuation: the starting shooting solution did not converge");
   if (!ksp_) PetscCall(SetFromOptions());
+  if (slices > 1) {
+    PetscCall(RunSlices(res)); // the caller's model and start are not used: every slice builds its own
+    PetscCall(PetscTime(&t1));
+    res.seconds = t1 - t0;
+    PetscFunctionReturn(0);
+  }
   model_ = &model, eqs_ = &eqs, stab_ = &stab, ti_ = &ti, shoot_ = &shoot;
   res                    = ContinuationResult{};
   res.param_name         = param;
@@ -588,7 +599,7 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     PetscCall(Leg(-1, s0, down, sdown, end_down));
     PetscCall(PetscPrintf(comm_, "cont: leg towards %s = %g: %zu point(s), %s\n", param.c_str(), (double)lmin, down.size(), end_down.c_str()));
   }
-  if (!interrupted_) {
+  if (!interrupted_ && !down_only_) {
     PetscCall(Leg(+1, s0, up, sup, end_up));
     PetscCall(PetscPrintf(comm_, "cont: leg towards %s = %g: %zu point(s), %s\n", param.c_str(), (double)lmax, up.size(), end_up.c_str()));
   } else end_up = "not started (interrupted)";
@@ -605,7 +616,7 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     states_.push_back(std::move(sup[i]));
   }
   if (both) res.leg_end.push_back(end_down);
-  res.leg_end.push_back(end_up);
+  if (!down_only_) res.leg_end.push_back(end_up);
   PetscCall(Detect(res));
   PetscCall(SetParam(model, lambda0));
   res.halvings         = halvings_;
@@ -613,6 +624,158 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   res.flow_evaluations = flows_;
   PetscCall(PetscTime(&t1));
   res.seconds = t1 - t0;
+  PetscFunctionReturn(0);
+}
+
+namespace {
+const char *const kEventTypes[] = {"lift-off", "separation-ends", "stick", "stick-ends", "fold", "period-doubling", "neimark-sacker",
+                                   "cyclic-fold", "monodromy-jump", "hopf", "coexistence"};
+constexpr int     kNEventTypes  = sizeof(kEventTypes) / sizeof(kEventTypes[0]);
+
+void PackPoint(const ContinuationPoint &p, std::vector<PetscReal> &b)
+{
+  b.insert(b.end(), {p.param, p.period, p.amplitude, p.frac_separated, p.frac_stuck, (PetscReal)p.trivial, (PetscReal)p.stable_cycle,
+                     (PetscReal)p.equilibrium_unstable, p.max_growth, (PetscReal)p.newton_iterations, (PetscReal)p.flow_evaluations, p.ds,
+                     p.seconds, (PetscReal)p.leg, (PetscReal)p.slice, (PetscReal)p.peak_to_peak.size(), (PetscReal)p.floquet.size()});
+  b.insert(b.end(), p.peak_to_peak.begin(), p.peak_to_peak.end());
+  for (auto &z : p.floquet) b.insert(b.end(), {z.real(), z.imag()});
+}
+
+size_t UnpackPoint(const PetscReal *b, ContinuationPoint &p)
+{
+  size_t k = 0;
+  p.param = b[k++], p.period = b[k++], p.amplitude = b[k++], p.frac_separated = b[k++], p.frac_stuck = b[k++];
+  p.trivial = (PetscInt)b[k++], p.stable_cycle = b[k++] != 0, p.equilibrium_unstable = (PetscInt)b[k++], p.max_growth = b[k++];
+  p.newton_iterations = (PetscInt)b[k++], p.flow_evaluations = (PetscInt)b[k++], p.ds = b[k++], p.seconds = b[k++];
+  p.leg = (PetscInt)b[k++], p.slice = (PetscInt)b[k++];
+  const size_t npp = (size_t)b[k++], nfl = (size_t)b[k++];
+  p.peak_to_peak.assign(b + k, b + k + npp), k += npp;
+  p.floquet.clear();
+  for (size_t j = 0; j < nfl; ++j, k += 2) p.floquet.emplace_back(b[k], b[k + 1]);
+  return k;
+}
+} // namespace
+
+PetscErrorCode Continuation::RunSlices(ContinuationResult &res)
+{
+  PetscMPIInt rank, size, srank;
+  MPI_Comm    sub;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  const PetscInt groups = std::min<PetscInt>(slices, size), group = (PetscInt)rank * groups / size;
+  PetscCallMPI(MPI_Comm_split(comm_, (int)group, rank, &sub));
+  PetscCallMPI(MPI_Comm_rank(sub, &srank));
+  // Numbers only cross ranks: every point, and the located events as (type, param, lo, hi).
+  std::vector<PetscReal> buf;
+  PetscInt               halv = 0, flows = 0, stopped = 0;
+  std::string            ends;
+  for (PetscInt s = group; s < slices; s += groups) {
+    const PetscReal a = lmin + (lmax - lmin) * s / slices, b = s + 1 == slices ? lmax : lmin + (lmax - lmin) * (s + 1) / slices;
+    Model              m(sub);
+    SlidingEquilibrium eq;
+    StabilityResult    st;
+    EnergyEstimate     est;
+    EquilibriumSolver  eqs(sub);
+    StabilitySolver    stab(sub);
+    EnergyAnalysis     ea(sub);
+    ThetaIntegrator    ti(sub);
+    Shooting           sh(sub);
+    ShootingResult     sr;
+    PetscCall(ModelCreateFromOptions(sub, m));
+    PetscCall(SetParam(m, b));
+    PetscCall(eqs.SetFromOptions());
+    PetscCall(stab.SetFromOptions());
+    PetscCall(ea.SetFromOptions());
+    PetscCall(ti.SetFromOptions());
+    PetscCall(sh.SetFromOptions());
+    PetscCall(eqs.Solve(m, eq));
+    PetscCall(stab.Solve(m, eq, st));
+    PetscCall(ea.Estimate(m, eq, st, est));
+    PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
+    PetscErrorCode err = sh.Solve(m, eq, ti, est.U0, est.dU0, est.T0, sr);
+    PetscCall(PetscPopErrorHandler());
+    PetscCheck(!err && sr.converged, sub, PETSC_ERR_NOT_CONVERGED,
+               "continuation slice %" PetscInt_FMT ": shooting from the energy estimate at %s = %g did not converge (%s); change -cont_slices",
+               s, param.c_str(), (double)b, sr.reason.c_str());
+    Continuation c(sub);
+    PetscCall(c.SetFromOptions()); // the corrector's KSP (-cont_ksp_*); the settings are this object's
+    c.param = param, c.lmin = a, c.lmax = b, c.ds = ds, c.ds_min = ds_min, c.ds_max = ds_max, c.locate_tol = locate_tol;
+    c.jump_tol = jump_tol, c.min_amplitude = min_amplitude, c.max_steps = max_steps, c.max_it = max_it, c.monitor = monitor;
+    c.equilibrium = equilibrium, c.both = PETSC_TRUE, c.down_only_ = true, c.slices = 1;
+    ContinuationResult r;
+    PetscCall(c.Run(m, eqs, stab, ti, sh, sr, r));
+    if (srank == 0) {
+      for (auto &p : r.points) {
+        ContinuationPoint q = p;
+        q.slice             = s;
+        buf.push_back(1);
+        PackPoint(q, buf);
+      }
+      for (auto &e : r.events) {
+        const int t = (int)(std::find_if(kEventTypes, kEventTypes + kNEventTypes, [&](const char *x) { return e.type == x; }) - kEventTypes);
+        if (t < kNEventTypes) buf.insert(buf.end(), {2, (PetscReal)t, e.param, e.lo, e.hi});
+      }
+      halv += r.halvings, flows += r.flow_evaluations, stopped |= r.interrupted;
+      char line[64];
+      std::snprintf(line, sizeof line, "slice %" PetscInt_FMT " [%g, %g]: ", s, (double)a, (double)b);
+      for (auto &e : r.leg_end) ends += "; " + std::string(line) + e;
+    }
+    PetscCall(PetscPrintf(sub, "cont: slice %" PetscInt_FMT " [%g, %g] (rank group %" PetscInt_FMT "): %zu point(s)\n", s, (double)a, (double)b,
+                          group, r.points.size()));
+    PetscCall(InterruptRequested(sub, &interrupted_));
+    if (interrupted_) break;
+  }
+  // Leg-end texts travel as characters after the numbers.
+  for (char ch : ends) buf.insert(buf.end(), {3, (PetscReal)(unsigned char)ch});
+  int n = (int)buf.size();
+  std::vector<int> counts(size), displs(size, 0);
+  PetscCallMPI(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_));
+  for (int r = 1; r < size; ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<PetscReal> all(displs[size - 1] + counts[size - 1]);
+  PetscCallMPI(MPI_Allgatherv(buf.data(), n, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm_));
+  PetscInt tot[3] = {halv, flows, stopped};
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, tot, 3, MPIU_INT, MPI_SUM, comm_));
+  std::vector<ContinuationEvent> located;
+  std::vector<std::string>       legs;
+  std::string                    cur;
+  for (size_t k = 0; k < all.size();) {
+    const int tag = (int)all[k++];
+    if (tag == 1) {
+      ContinuationPoint p;
+      k += UnpackPoint(&all[k], p);
+      res.points.push_back(p);
+    } else if (tag == 2) {
+      located.push_back({kEventTypes[(int)all[k]], 0, all[k + 1], all[k + 2], all[k + 3], ""});
+      k += 4;
+    } else {
+      cur += (char)(int)all[k++];
+    }
+  }
+  res.leg_end.push_back(cur.size() > 2 ? cur.substr(2) : cur);
+  // One branch ordered in the parameter; a slice's lower end and the next slice's start are two
+  // shooting solutions at the same parameter: the upper slice's one is kept.
+  std::stable_sort(res.points.begin(), res.points.end(), [](const ContinuationPoint &x, const ContinuationPoint &y) {
+    return x.param < y.param || (x.param == y.param && x.slice > y.slice);
+  });
+  res.points.erase(std::unique(res.points.begin(), res.points.end(),
+                               [](const ContinuationPoint &x, const ContinuationPoint &y) { return x.param == y.param; }),
+                   res.points.end());
+  // Events between neighbours of the merged branch, the slices' located ones put in their place.
+  const PetscReal tol = locate_tol;
+  locate_tol          = 0;
+  states_.clear();
+  PetscCall(Detect(res));
+  locate_tol = tol;
+  for (auto &e : res.events)
+    for (auto &l : located)
+      if (l.type == e.type && l.lo >= e.lo - 1e-12 && l.hi <= e.hi + 1e-12) e.param = l.param, e.lo = l.lo, e.hi = l.hi;
+  res.param_name       = param;
+  res.halvings         = tot[0];
+  res.flow_evaluations = tot[1];
+  res.interrupted      = tot[2] > 0;
+  interrupted_         = res.interrupted;
+  PetscCallMPI(MPI_Comm_free(&sub));
   PetscFunctionReturn(0);
 }
 
@@ -791,12 +954,13 @@ PetscErrorCode Continuation::Write(const ContinuationResult &res, io::H5Writer &
   PetscCallMPI(MPI_Bcast(&N, 1, MPI_UNSIGNED_LONG_LONG, 0, comm_));
   for (auto &p : res.points) m = std::max<hsize_t>(m, p.floquet.size());
   std::vector<PetscReal> lam, T, amp, sep, stk, lmax, grow, sec, ptp, fl(n * m * 2, NAN);
-  std::vector<PetscInt>  stable, equ, its, leg;
+  std::vector<PetscInt>  stable, equ, its, leg, slc;
   for (size_t i = 0; i < n; ++i) {
     const auto &p = res.points[i];
     lam.push_back(p.param), T.push_back(p.period), amp.push_back(p.amplitude), sep.push_back(p.frac_separated);
     stk.push_back(p.frac_stuck), lmax.push_back(p.LargestNonTrivial()), grow.push_back(p.max_growth), sec.push_back(p.seconds);
     stable.push_back(p.stable_cycle), equ.push_back(p.equilibrium_unstable), its.push_back(p.newton_iterations), leg.push_back(p.leg);
+    slc.push_back(p.slice);
     for (hsize_t k = 0; k < N; ++k) ptp.push_back(k < p.peak_to_peak.size() ? p.peak_to_peak[k] : NAN);
     for (size_t k = 0; k < p.floquet.size(); ++k) fl[(i * m + k) * 2] = p.floquet[k].real(), fl[(i * m + k) * 2 + 1] = p.floquet[k].imag();
   }
@@ -813,6 +977,7 @@ PetscErrorCode Continuation::Write(const ContinuationResult &res, io::H5Writer &
   PetscCall(out.WriteArray("/continuation/equilibrium_growth_rate", {n}, grow.data()));
   PetscCall(out.WriteIntArray("/continuation/iterations", {n}, its.data()));
   PetscCall(out.WriteIntArray("/continuation/leg", {n}, leg.data()));
+  PetscCall(out.WriteIntArray("/continuation/slice", {n}, slc.data()));
   PetscCall(out.WriteArray("/continuation/seconds", {n}, sec.data()));
   PetscCall(out.WriteAttribute("/continuation", "parameter", res.param_name.c_str()));
   PetscCall(out.WriteAttribute("/continuation", "step_halvings", res.halvings));

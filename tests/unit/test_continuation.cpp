@@ -246,6 +246,40 @@ TEST(Continuation, BranchInVAtFixedMuWithItsRegimeChanges)
   EXPECT_NEAR(alone.sr.period / p.period, 1.0, 1e-6) << "V = " << p.param;
 }
 
+TEST(Continuation, ParameterSlicesOverRankGroupsGiveOneBranch)
+{
+  // -cont_slices 2 on [0.4, 0.6]: [0.4, 0.5] and [0.5, 0.6], each from its own shooting solution
+  // (energy estimate) at its upper end; on 2 ranks one rank each, on one rank in turn.
+  Problem pr(3.0, 0.5);
+  ASSERT_EQ(pr.err, 0);
+  Continuation c(PETSC_COMM_WORLD);
+  ASSERT_EQ(c.SetFromOptions(), 0);
+  c.lmin = 0.4, c.lmax = 0.6, c.slices = 2, c.equilibrium = PETSC_FALSE;
+  ContinuationResult res;
+  ASSERT_EQ(RunBranch(pr, c, res), 0);
+  ASSERT_GE(res.points.size(), 6u);
+  EXPECT_EQ(res.points.front().param, 0.4);
+  EXPECT_EQ(res.points.back().param, 0.6);
+  PetscInt n[2] = {0, 0};
+  for (size_t i = 0; i < res.points.size(); ++i) {
+    ++n[res.points[i].slice];
+    EXPECT_EQ(res.points[i].slice, res.points[i].param < 0.5 ? 0 : 1) << "mu = " << res.points[i].param;
+    if (i) EXPECT_GT(res.points[i].param, res.points[i - 1].param);
+  }
+  EXPECT_GT(n[0], 1);
+  EXPECT_GT(n[1], 1);
+  // Slice 1's lower end (mu = 0.5, reached by continuation from 0.6) against stand-alone shooting
+  // there (the phase spread at 1000 steps) and the same on every rank.
+  const auto *p = &res.points.front();
+  for (auto &q : res.points)
+    if (q.param == 0.5) p = &q;
+  ASSERT_EQ(p->param, 0.5);
+  EXPECT_NEAR(pr.sr.period / p->period, 1.0, 1e-6);
+  PetscReal T[2] = {p->period, -p->period};
+  MPI_Allreduce(MPI_IN_PLACE, T, 2, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_EQ(T[0], -T[1]) << "every rank holds the same merged branch";
+}
+
 TEST(Continuation, AFailedStepHalvesTheStepAndKeepsTheBranch)
 {
   Problem pr(0.75, 0.5);

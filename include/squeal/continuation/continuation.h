@@ -49,6 +49,7 @@ struct ContinuationPoint {
   PetscInt                             newton_iterations = 0, flow_evaluations = 0;
   PetscReal                            ds = 0, seconds = 0;
   PetscInt                             leg = 0; // -1 towards -cont_min, 0 start, +1 towards -cont_max
+  PetscInt                             slice = 0; // -cont_slices: the parameter slice that computed it
   PetscReal LargestNonTrivial() const;
 };
 
@@ -90,6 +91,10 @@ public:
   PetscReal   lmin = PETSC_NINFINITY, lmax = PETSC_INFINITY; // defaults: mu [0, 0.6], v [0.1, 10]
   PetscReal   ds = 0.02, ds_min = 1e-4, ds_max = 0.1, locate_tol = 1e-4, jump_tol = 0.2, min_amplitude = 0.02;
   PetscInt    max_steps = 200, max_it = 12;
+  // -cont_slices k: [min, max] cut into k equal slices, each continued downwards from a shooting
+  // solution (energy estimate) at its upper end by a group of ranks (MPI_Comm_split, size / k each;
+  // a group computes several slices in turn when k > size); the points gathered into one branch.
+  PetscInt    slices = 1;
   PetscBool   monitor = PETSC_FALSE, equilibrium = PETSC_TRUE, both = PETSC_TRUE;
   // Test hook: the corrector of this step number (counted over the run, from 1) is declared failed
   // once, so that the halving of the step can be checked; -1: never.
@@ -105,6 +110,8 @@ private:
   PetscErrorCode SetParam(Model &model, PetscReal v) const;
   PetscReal      GetParam(const Model &model) const;
   PetscErrorCode SetParamAt(PetscReal v, PetscReal T); // the parameter for a flow of period T
+  PetscErrorCode RunSlices(ContinuationResult &res);
+  bool           down_only_ = false; // a slice: from its upper end towards -cont_min only
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
   // Shooting::Solve at y.lambda from y, with the equilibrium (and its stability) there.
   PetscErrorCode Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why);
