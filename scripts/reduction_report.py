@@ -8,6 +8,9 @@ model (each matched to the nearest reduced eigenvalue).
 
   /usr/bin/python3 scripts/reduction_report.py --squeal build/squeal --scene examples/pad/pad.yaml \
       --fmax 12000 15000 20000 30000 40000 [--band 10000] [--np 2]
+  31119-DOF pad (full stability run ~3 min; keep its results file and pass it with --full-h5):
+  /usr/bin/python3 scripts/reduction_report.py --scene examples/pad/pad_large.yaml --band 10000 \
+      --fmax 10000 20000 30000 [--full-h5 full.h5]
 """
 import argparse
 import os
