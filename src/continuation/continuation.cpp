@@ -802,28 +802,29 @@ PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &
     ContinuationPoint pt;
     bool              ok;
     std::string       why;
-    // Guess: the straight line between the two bracketing solutions.
+    PetscCall(InterruptRequested(comm_, &interrupted_));
+    if (interrupted_) break;
+    // Shooting at the fixed parameter from the solution at the lower bracket end (exact tangents:
+    // a few corrections, the parameter moving by half the bracket). Where it fails, the bordered
+    // corrector from the straight line between the two bracket solutions.
     PetscCall(Copy(slo, g));
-    PetscCall(Axpby(g, 0.5, shi, 0.5));
     g.lambda = mid;
-    PetscInt its;
-    PetscCall(Corrector(slo, g, t, y, &its, why));
-    if (interrupted_) {
-      ev.detail += "; bisection stopped: " + why;
-      break;
-    }
-    ok = why.empty();
-    if (ok) PetscCall(Polish(y, pt, &sol, &ok, why));
-    // At a kink of the branch the bordered corrector (difference products) can stall; plain
-    // shooting at the fixed parameter from either bracket end's solution (exact tangents) then
-    // decides the regime (case 1's lift-off: 12 corrector iterations without convergence).
-    for (State *from : {&slo, &shi}) {
-      if (ok) break;
+    PetscCall(Polish(g, pt, &sol, &ok, why));
+    if (!ok) {
+      why = "shooting from the lower end: " + why;
       std::string why2;
-      PetscCall(Copy(*from, g));
+      PetscInt    its;
+      PetscCall(Copy(slo, g));
+      PetscCall(Axpby(g, 0.5, shi, 0.5));
       g.lambda = mid;
-      PetscCall(Polish(g, pt, &sol, &ok, why2));
-      if (!ok) why += std::string("; shooting from the ") + (from == &slo ? "lower" : "upper") + " end: " + why2;
+      PetscCall(Corrector(slo, g, t, y, &its, why2));
+      if (interrupted_) {
+        ev.detail += "; bisection stopped: " + why2;
+        break;
+      }
+      ok = why2.empty();
+      if (ok) PetscCall(Polish(y, pt, &sol, &ok, why2));
+      if (!ok) why += "; corrector: " + why2;
     }
     if (!ok) {
       ev.detail += "; bisection stopped: " + why;
