@@ -25,6 +25,8 @@
 #include <map>
 #include <string>
 
+#include <sys/resource.h>
+
 using namespace squeal;
 
 namespace {
@@ -234,6 +236,61 @@ void Chain(benchmark::State &state)
   state.counters["dense"]     = p.ti.Dense();
 }
 
+// Many contacts at scale (issue 10): N DOFs, nc contacts, sparse back end, no eigenanalysis (h fixed at
+// 1e-5 s, about 1/1000 of the cell's period); from the equilibrium with a velocity pattern that
+// moves every point, 20 warm steps. W: 0 = dense Delassus matrix and stored Y = A^-1 H (the path of
+// 3 n_c <= -theta_delassus_max), 1 = sparse W (drop 1e-15) and (S8) by one more solve, 2 = the default choice
+// (by cost, or -theta_delassus_max; counter sparse_W says which). Counters: setup_s (ThetaIntegrator::SetUp), setup_MB (growth of
+// the resident set over SetUp), rss_MB (peak resident set of the process so far), fp_passes.
+void ChainScale(benchmark::State &state)
+{
+  Prepared    p;
+  ChainParams prm;
+  prm.cells         = state.range(0) / 3;
+  prm.contact_every = prm.cells / state.range(1);
+  prm.gamma_step    = 360.0 / prm.cells;
+  prm.speed_step    = 1.0 / prm.cells;
+  PetscCallAbort(PETSC_COMM_WORLD, BuildChain(PETSC_COMM_WORLD, prm, p.model));
+  EquilibriumSolver eqs(PETSC_COMM_WORLD);
+  PetscCallAbort(PETSC_COMM_WORLD, eqs.Solve(p.model, p.eq));
+  PetscCallAbort(PETSC_COMM_WORLD, p.ti.SetFromOptions());
+  PetscCallAbort(PETSC_COMM_WORLD, p.ti.SetDenseMax(0));
+  if (state.range(2) < 2) PetscCallAbort(PETSC_COMM_WORLD, p.ti.SetDelassusMax(state.range(2) ? 0 : PETSC_MAX_INT, 1e-15));
+  PetscLogDouble m0, m1, t0, t1;
+  PetscCallAbort(PETSC_COMM_WORLD, PetscMemoryGetCurrentUsage(&m0));
+  PetscCallAbort(PETSC_COMM_WORLD, PetscTime(&t0));
+  PetscCallAbort(PETSC_COMM_WORLD, p.ti.SetUp(p.model, 1e-5));
+  PetscCallAbort(PETSC_COMM_WORLD, PetscTime(&t1));
+  PetscCallAbort(PETSC_COMM_WORLD, PetscMemoryGetCurrentUsage(&m1));
+  PetscCallAbort(PETSC_COMM_WORLD, VecDuplicate(p.eq.U, &p.U));
+  PetscCallAbort(PETSC_COMM_WORLD, VecDuplicate(p.eq.U, &p.dU));
+  PetscCallAbort(PETSC_COMM_WORLD, VecCopy(p.eq.U, p.U));
+  PetscInt lo, hi;
+  PetscScalar *du;
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetOwnershipRange(p.dU, &lo, &hi));
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetArray(p.dU, &du));
+  for (PetscInt i = lo; i < hi; ++i) du[i - lo] = 1e-2 * std::sin(0.7 * i);
+  PetscCallAbort(PETSC_COMM_WORLD, VecRestoreArray(p.dU, &du));
+  const PetscInt nc = p.model.contacts.Size();
+  p.r.setZero(3 * nc);
+  for (PetscInt c = 0; c < nc; ++c) p.r[3 * c + kT] = p.model.contacts.mu * p.eq.N[c], p.r[3 * c + kN] = p.eq.N[c];
+  StepInfo info;
+  for (PetscInt i = 0; i < 20; ++i) PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
+  double passes = 0;
+  for (auto _ : state) {
+    PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
+    passes += info.contact.iterations;
+  }
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  state.counters["fp_passes"] = passes / state.iterations();
+  state.counters["setup_s"]   = t1 - t0;
+  state.counters["setup_MB"]  = (m1 - m0) / 1048576.0;
+  state.counters["rss_MB"]    = ru.ru_maxrss / 1024.0; // kB on Linux
+  state.counters["sparse_W"]  = p.ti.SparseDelassus();
+  state.counters["W_nnz"]     = p.ti.SparseDelassus() ? (double)p.ti.DelassusSparse().nonZeros() : 9.0 * nc * nc;
+}
+
 // Console output plus, at the end, library / hand-written time per step for each 3-DOF case
 // (fastest repetition of each, the least disturbed by other load on the machine).
 class RatioReporter : public benchmark::ConsoleReporter {
@@ -269,6 +326,9 @@ BENCHMARK(ThreeDofLibrary)->Name("ThreeDof/Library")->ArgName("case")->Arg(1)->A
 BENCHMARK(ThreeDofMinimalLoop)->Name("ThreeDof/MinimalLoop")->ArgName("case")->Arg(1)->Arg(2);
 BENCHMARK(Chain)->Name("Chain")->ArgNames({"N", "nc", "dense"})->ArgsProduct({{30, 90, 300}, {10}, {0, 1}})
   ->ArgsProduct({{300, 1500, 3000}, {10, 100}, {0}})->Args({1500, 100, 1})->Unit(benchmark::kMicrosecond);
+// No dense-W runs of 1000 points: at N = 30000 they took 0.9 GB, 22 s of set-up and 0.3 s per step.
+BENCHMARK(ChainScale)->Name("ChainScale")->ArgNames({"N", "nc", "W"})->ArgsProduct({{3000, 30000}, {10, 100}, {0, 1, 2}})
+  ->ArgsProduct({{3000, 30000}, {1000}, {1}})->Iterations(20)->Unit(benchmark::kMicrosecond);
 
 int main(int argc, char **argv)
 {

@@ -10,6 +10,8 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   cs_                   = &cs;
   p_.h                  = h;
   hW_                   = h * W;
+  hWs_.resize(0, 0);
+  sparse_ = false;
   v_.setZero(3 * nc);
   rho_n_.resize(nc);
   rho_t_.resize(nc);
@@ -22,8 +24,33 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   }
 }
 
+void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<PetscReal> &W, PetscReal h, PetscReal rho_scale)
+{
+  const Eigen::Index nc = cs.Size();
+  cs_                   = &cs;
+  p_.h                  = h;
+  hWs_                  = h * W;
+  hWs_.makeCompressed();
+  hW_.resize(0, 0);
+  sparse_ = true;
+  v_.setZero(3 * nc);
+  rho_n_.resize(nc);
+  rho_t_.resize(nc);
+  speed_.resize(nc);
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    rho_n_[c] = rho_scale / (h * h * W.coeff(3 * c + kN, 3 * c + kN)); // (2.4), as in the dense Setup
+    rho_t_[c] = rho_scale / (h * W.coeff(3 * c + kT, 3 * c + kT));
+    speed_[c] = cs.Speed(c);
+  }
+}
+
 LocalSolveInfo LocalContactSolver::Solve(const Eigen::VectorXd &w_f, const Eigen::VectorXd &gap0, Eigen::VectorXd &r)
 {
+  if (sparse_) {
+    p_.mu          = cs_->mu;
+    p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
+    return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
+  }
   return SolveSized<Eigen::Dynamic>(w_f, gap0, r);
 }
 

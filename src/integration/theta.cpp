@@ -101,6 +101,17 @@ PetscErrorCode ThetaIntegrator::SetDenseMax(PetscInt n)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ThetaIntegrator::SetDelassusMax(PetscInt n, PetscReal drop)
+{
+  PetscFunctionBeginUser;
+  PetscCall(CheckReal(comm_, prefix_.c_str(), "delassus_drop", drop, Range::NonNegative()));
+  PetscCheck(drop < 1, comm_, kErrInput, "option -%sdelassus_drop = %g: expected < 1 (a fraction of each column's largest entry)",
+             prefix_.c_str(), (double)drop);
+  delassus_max_  = n;
+  delassus_drop_ = drop;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ThetaIntegrator::SetFromOptions()
 {
   PetscFunctionBeginUser;
@@ -116,11 +127,18 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                     "ThetaIntegrator::SetRhoScale", &rho_scale_, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-dense_max", "Largest N for the dense back end, replicated on every rank (larger: sparse, distributed)",
                             "ThetaIntegrator::SetDenseMax", dense_max_, &dense_max_, nullptr));
+  PetscCall(PetscOptionsInt("-delassus_max",
+                            "Sparse back end: largest 3 n_c with the dense Delassus matrix and Y = A^-1 H stored (larger: sparse W, one more solve "
+                            "per step; < 0: when N 3 n_c <= 2 nnz(factor of A))",
+                            "ThetaIntegrator::SetDelassusMax", delassus_max_, &delassus_max_, nullptr));
+  SquealOptionsReal("-delassus_drop", "Sparse W: drop |W_ij| <= this x max_i |W_ij| (0: keep every non-zero)", "ThetaIntegrator::SetDelassusMax",
+                    &delassus_drop_, Range::NonNegative(), checks);
   PetscCall(PetscOptionsBool("-fixed_size", "Dense back end: run the step compiled for the model's sizes when available (false: run-time sizes)",
                              "ThetaIntegrator::SetUp", fixed_size_, &fixed_size_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
+  PetscCall(SetDelassusMax(delassus_max_, delassus_drop_));
   PetscCall(KSPCreate(comm_, ksp_.out()));
   PetscCall(KSPSetOptionsPrefix(ksp_, prefix_.c_str()));
   PetscCall(UseDirectSolver(ksp_, Factorisation::SPD)); // A = M + h theta C + h^2 theta^2 K
@@ -142,6 +160,7 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   // Small models run the dense step on every rank, on gathered states: cheaper than a
   // distributed factorisation of a few hundred unknowns, and the same numbers on any rank count.
   dense_ = n_ <= dense_max_;
+  sparse_w_ = false; // decided in SetUpSparse, once A is factorised
   g0_.resize(nc_);
   for (PetscInt c = 0; c < nc_; ++c) g0_[c] = model.contacts.points[c].g0;
   wf_.resize(3 * nc_);
@@ -152,11 +171,13 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   PetscCall(VecDuplicate(model.F, cq_.out()));
   if (dense_) PetscCall(SetUpDense());
   else PetscCall(SetUpSparse());
+  auto Wd = [&](PetscInt i) { return sparse_w_ ? Ws_.coeff(i, i) : W_(i, i); };
   if (nc_ > 0)
     for (PetscInt c = 0; c < nc_; ++c)
-      PetscCheck(W_(3 * c + kN, 3 * c + kN) > 0 && W_(3 * c + kT, 3 * c + kT) > 0, comm_, PETSC_ERR_PLIB,
+      PetscCheck(Wd(3 * c + kN) > 0 && Wd(3 * c + kT) > 0, comm_, PETSC_ERR_PLIB,
                  "Delassus matrix has a non-positive diagonal at contact %" PetscInt_FMT, c);
-  local_.Setup(model.contacts, W_, h, rho_scale_);
+  if (sparse_w_) local_.Setup(model.contacts, Ws_, h, rho_scale_);
+  else local_.Setup(model.contacts, W_, h, rho_scale_);
   local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
   if (dense_) SetUpKernel();
   PetscFunctionReturn(0);
@@ -223,6 +244,34 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   PetscCall(VecDuplicate(loc_, rloc_.out()));
   if (to_all_) PetscCall(VecScatterDestroy(&to_all_));
   PetscCall(VecScatterCreateToAll(loc_, &to_all_, loc_all_.out()));
+  // Many contacts: no N x 3 n_c matrix, W sparse. Automatic (-delassus_max < 0): keep Y while its
+  // product (N 3 n_c multiply-adds) costs no more than the extra solve (about 2 nnz(factor of A));
+  // without a factorisation to count, while 3 n_c <= 30.
+  if (delassus_max_ >= 0) sparse_w_ = 3 * nc_ > delassus_max_;
+  else {
+    PC        pc;
+    PetscBool factored;
+    double    nz = 0;
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)pc, &factored, PCCHOLESKY, PCLU, ""));
+    if (factored) {
+      Mat     F;
+      MatInfo info;
+      PetscCall(PCFactorGetMatrix(pc, &F));
+      PetscCall(MatGetInfo(F, MAT_GLOBAL_SUM, &info));
+      nz = info.nz_used;
+    }
+    sparse_w_ = nz > 0 ? (double)n_ * 3 * nc_ > 2 * nz : 3 * nc_ > 30;
+    PetscCall(PetscInfo(nullptr, "theta-method: factor of A with %g entries, N x 3 n_c = %g: %s\n", nz, (double)n_ * 3 * nc_,
+                        sparse_w_ ? "sparse W, (S8) by a solve" : "dense W and Y"));
+  }
+  if (nc_ > 0 && sparse_w_) {
+    PetscCall(SetUpSparseDelassus());
+    PetscFunctionReturn(0);
+  }
+  Ws_.resize(0, 0);
+  hr_.reset();
+  yr_.reset();
 
   // Y = A^-1 H column by column (3 n_c solves, once per h), W = H^T Y.
   PetscInt rstart, rend;
@@ -249,6 +298,47 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   }
   PetscCall(MatAssemblyBegin(Yd_, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(Yd_, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetUpSparseDelassus()
+{
+  PetscFunctionBeginUser;
+  Yd_.reset();
+  W_.resize(0, 0);
+  PetscCall(VecDuplicate(model_->F, hr_.out()));
+  PetscCall(VecDuplicate(model_->F, yr_.out()));
+  // W = H^T A^-1 H column by column (3 n_c solves, once per h), only its kept entries stored.
+  // Every rank sees the whole gathered column, so all ranks keep the same entries.
+  std::vector<Eigen::Triplet<PetscReal>> t;
+  Eigen::VectorXd                         wcol;
+  w_dropped_     = 0;
+  w_dropped_max_ = 0;
+  for (PetscInt j = 0; j < 3 * nc_; ++j) {
+    PetscCall(MatGetColumnVector(H_, hr_, j));
+    PetscCall(KSPSolve(ksp_, hr_, yr_));
+    KSPConvergedReason reason;
+    PetscCall(KSPGetConvergedReason(ksp_, &reason));
+    PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED, "theta-method: solve with A = M + h theta C + h^2 theta^2 K failed (%s)",
+               KSPConvergedReasons[reason]);
+    PetscCall(ToLocal(yr_, wcol));
+    const PetscReal big = wcol.cwiseAbs().maxCoeff(), cut = delassus_drop_ * big;
+    for (PetscInt i = 0; i < 3 * nc_; ++i) {
+      const PetscReal a = std::abs(wcol[i]);
+      if (a == 0) continue;
+      if (a > cut || i == j) t.emplace_back(i, j, wcol[i]);
+      else {
+        ++w_dropped_;
+        w_dropped_max_ = std::max(w_dropped_max_, a / big);
+      }
+    }
+  }
+  Ws_.resize(3 * nc_, 3 * nc_);
+  Ws_.setFromTriplets(t.begin(), t.end());
+  Ws_.makeCompressed();
+  PetscCall(PetscInfo(nullptr, "theta-method: sparse Delassus matrix, %" PetscInt_FMT " x %" PetscInt_FMT ", %" PetscInt_FMT
+                               " entries kept, %" PetscInt_FMT " dropped (largest dropped %g of its column's largest)\n",
+                      3 * nc_, 3 * nc_, (PetscInt)Ws_.nonZeros(), w_dropped_, (double)w_dropped_max_));
   PetscFunctionReturn(0);
 }
 
@@ -361,14 +451,18 @@ PetscErrorCode ThetaIntegrator::StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, S
     }
     PetscCall(VecAXPY(U, h * (1 - t), dU));
     PetscCall(VecCopy(vf_s_, dU));
-    if (nc_ > 0) {                                   // (S8)
+    if (nc_ > 0 && r.any()) {                        // (S8); all points open: r = 0, nothing to add
       PetscScalar *rl;
       PetscInt     lo, hi;
       PetscCall(VecGetOwnershipRange(rloc_, &lo, &hi));
       PetscCall(VecGetArray(rloc_, &rl));
       for (PetscInt k = lo; k < hi; ++k) rl[k - lo] = h * r[k];
       PetscCall(VecRestoreArray(rloc_, &rl));
-      PetscCall(MatMultAdd(Yd_, rloc_, dU, dU));
+      if (sparse_w_) { // dU += A^-1 (H h r): one more solve with the factorised A instead of the N x 3 n_c Y
+        PetscCall(MatMult(H_, rloc_, hr_));
+        PetscCall(KSPSolve(ksp_, hr_, yr_));
+        PetscCall(VecAXPY(dU, 1.0, yr_));
+      } else PetscCall(MatMultAdd(Yd_, rloc_, dU, dU));
     }
     PetscCall(VecAXPY(U, h * t, dU));                // (S9)
   }
@@ -541,6 +635,17 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
                                    " passes, rho scale %g\n",
                                    (double)theta_, (double)h_, dense_ ? "dense" : "sparse (KSP)", (double)fp_tol_, fp_max_it_,
                                    (double)rho_scale_));
+  if (!dense_ && nc_ > 0) {
+    if (sparse_w_)
+      PetscCall(PetscViewerASCIIPrintf(viewer,
+                                       "  contact operator: sparse W (3 n_c = %" PetscInt_FMT " > -%sdelassus_max %" PetscInt_FMT "), %" PetscInt_FMT
+                                       " entries, %" PetscInt_FMT " below the drop tolerance %g dropped (largest %g), (S8) by a solve\n",
+                                       3 * nc_, prefix_.c_str(), delassus_max_, (PetscInt)Ws_.nonZeros(), w_dropped_, (double)delassus_drop_,
+                                       (double)w_dropped_max_));
+    else
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  contact operator: dense W and Y = A^-1 H (3 n_c = %" PetscInt_FMT " <= -%sdelassus_max %" PetscInt_FMT ")\n",
+                                       3 * nc_, prefix_.c_str(), delassus_max_));
+  }
   if (!dense_ && ksp_) {
     PetscCall(PetscViewerASCIIPushTab(viewer));
     PetscCall(KSPView(ksp_, viewer));

@@ -8,7 +8,8 @@
 // points (v updated after each point; with one point this is the reference's Jacobi pass).
 // Stop when sum_c ||r_c^(k+1) - r_c^(k)||_1 <= tol (R_ref + sum_c r_n,c).
 // The problem is small and dense, so it is replicated on every rank: no communication, and every
-// rank takes identical decisions. All storage is sized in Setup; Solve allocates nothing.
+// rank takes identical decisions. With many contacts W may be given sparse (Setup overload): the
+// same passes in the same order, each costing O(nnz(W)). All storage is sized in Setup; Solve allocates nothing.
 // The passes are written once (ContactPasses) for any storage: Solve runs them on run-time sizes,
 // SolveSized on compile-time sizes for the fixed-size dense step kernels (integration/step_kernel.h),
 // where fixed-size loops cost about half the instructions of the dynamic ones on 3 x 3 data.
@@ -17,9 +18,11 @@
 #include "squeal/contact/contact_set.h"
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 #include <vector>
 
 namespace squeal {
@@ -38,6 +41,18 @@ struct FixedPointParams {
   PetscInt  max_it      = 500;
   bool      rectilinear = false;
 };
+
+// v += hW(:, o + kT) dt + hW(:, o + kB) db + hW(:, o + kN) dn on a sparse (column-major) W, where a
+// pass then costs O(nnz(W)) instead of O(n_c^2).
+template <class VecV>
+EIGEN_ALWAYS_INLINE void AddColumns(const Eigen::SparseMatrix<PetscReal> &hW, Eigen::Index o, PetscReal dt, PetscReal db, PetscReal dn,
+                                    VecV &v)
+{
+  const PetscReal d[3] = {dt, db, dn}; // kT, kB, kN
+  const int       j[3] = {kT, kB, kN};
+  for (int k = 0; k < 3; ++k)
+    for (Eigen::SparseMatrix<PetscReal>::InnerIterator it(hW, o + j[k]); it; ++it) v[it.index()] += it.value() * d[k];
+}
 
 // The fixed-point passes on any Eigen storage (dynamic or fixed size): hW = h W (3 n_c square),
 // rho_n, rho_t, speed, gap0 per point, w_f and r per local row; v = w_f + h W r on return.
@@ -71,7 +86,8 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, cons
       }
       const PetscReal dt = rt - r[o + kT], db = rb - r[o + kB], dn = rn - r[o + kN];
       if ((dt != 0) | (db != 0) | (dn != 0)) { // one branch instead of three
-        v.noalias() += hW.col(o + kT) * dt + hW.col(o + kB) * db + hW.col(o + kN) * dn;
+        if constexpr (std::is_base_of_v<Eigen::SparseMatrixBase<MatW>, MatW>) AddColumns(hW, o, dt, db, dn, v);
+        else v.noalias() += hW.col(o + kT) * dt + hW.col(o + kB) * db + hW.col(o + kN) * dn;
         r[o + kT] = rt;
         r[o + kB] = rb;
         r[o + kN] = rn;
@@ -93,6 +109,9 @@ class LocalContactSolver {
 public:
   // W is 3n_c x 3n_c; rho_scale multiplies the rules (2.4) (1 = method.md).
   void Setup(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, PetscReal rho_scale);
+  // The same with W sparse (many contacts): the same passes, each O(nnz(W)); Solve then uses it
+  // (SolveSized needs the dense Setup).
+  void Setup(const ContactSet &cs, const Eigen::SparseMatrix<PetscReal> &W, PetscReal h, PetscReal rho_scale);
   void SetTolerances(PetscReal tol, PetscInt max_it, PetscReal r_ref)
   {
     p_.tol    = tol;
@@ -132,6 +151,8 @@ public:
 private:
   const ContactSet *cs_ = nullptr;
   Eigen::MatrixXd   hW_; // h W
+  Eigen::SparseMatrix<PetscReal> hWs_; // h W when set up sparse (then hW_ is empty)
+  bool              sparse_ = false;
   Eigen::VectorXd   v_, rho_n_, rho_t_, speed_;
   FixedPointParams  p_;
 };

@@ -10,6 +10,13 @@
 //   (S5) w_f = H^T v_f,  g~^i_n = H_n^T (U^i + h(1-theta) dU^i) + g0
 //   (S6-7) local fixed point on r (LocalContactSolver)
 //   (S8) dU^{i+1} = v_f + h Y r,   (S9) U^{i+1} = U^i + h (theta dU^{i+1} + (1-theta) dU^i)
+// Sparse back end with many contacts (3 n_c > -theta_delassus_max; default -1: whenever the product
+// with Y would cost more than one more solve, N 3 n_c > 2 nnz(factor of A)): no N x 3 n_c matrix is stored. (S2) keeps W = H^T A^-1 H sparse: each column from one solve, entries with
+// |W_ij| <= -theta_delassus_drop (default 1e-15) x max_i |W_ij| dropped (counted, and the largest
+// dropped ratio shown by View; 0 keeps every non-zero); (S6-7) runs the same passes on it at
+// O(nnz(W)) each; (S8) dU^{i+1} = v_f + A^-1 (h H r) by one more solve with the factorised A.
+// For a chain W is numerically banded; for a general model it may be dense and the passes then
+// cost as much as with the dense W (the result is the same either way).
 // Two back ends with identical equations: "dense" (N <= -theta_dense_max, default 200; under MPI
 // every rank steps the gathered state, so a small model costs the same on any rank count;
 // A^-1 B, A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written
@@ -28,6 +35,7 @@
 #include "squeal/model/model.h"
 
 #include <Eigen/Dense>
+#include <Eigen/SparseCore>
 
 #include <string>
 
@@ -45,7 +53,11 @@ public:
   PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it);
   PetscErrorCode SetRhoScale(PetscReal s);
   PetscErrorCode SetDenseMax(PetscInt n);
-  // -theta_theta, -theta_fp_tol, -theta_fp_max_it, -theta_rho_scale, -theta_dense_max, -theta_ksp_*.
+  // Sparse back end: largest 3 n_c with the dense W and Y = A^-1 H (above: sparse W, (S8) by a solve;
+  // < 0: by cost, see above), and the relative drop tolerance of the sparse W (0: exact non-zeros only).
+  PetscErrorCode SetDelassusMax(PetscInt n, PetscReal drop);
+  // -theta_theta, -theta_fp_tol, -theta_fp_max_it, -theta_rho_scale, -theta_dense_max,
+  // -theta_delassus_max, -theta_delassus_drop, -theta_ksp_*.
   PetscErrorCode SetFromOptions();
   // (S1)-(S3) for step size h; call again whenever h changes.
   PetscErrorCode SetUp(const Model &model, PetscReal h);
@@ -81,7 +93,9 @@ public:
   PetscReal                 StepSize() const { return h_; }
   bool                      Dense() const { return dense_; }
   bool                      FixedSizeKernel() const { return kernel_ && kernel_->FixedSize(); }
-  const Eigen::MatrixXd    &Delassus() const { return W_; }
+  const Eigen::MatrixXd    &Delassus() const { return W_; } // empty when SparseDelassus()
+  bool                      SparseDelassus() const { return sparse_w_; }
+  const Eigen::SparseMatrix<PetscReal> &DelassusSparse() const { return Ws_; }
   const LocalContactSolver &Contact() const { return local_; }
   const Model              &GetModel() const { return *model_; }
   const std::string        &Prefix() const { return prefix_; }
@@ -128,7 +142,14 @@ private:
 
   // sparse back end
   KSPH       ksp_;
-  MatH       A_, B_, H_, Yd_;
+  MatH       A_, B_, H_, Yd_;                 // Yd_ only with the dense W (3 n_c <= delassus_max_)
+  PetscInt   delassus_max_ = -1;              // < 0: automatic (SetUpSparse)
+  PetscReal  delassus_drop_ = 1e-15, w_dropped_max_ = 0; // largest |dropped W_ij| / max_i |W_ij|
+  PetscInt   w_dropped_ = 0;
+  bool       sparse_w_  = false;
+  Eigen::SparseMatrix<PetscReal> Ws_;
+  VecH       hr_, yr_;                        // H (h r) and A^-1 H (h r), sparse W only
+  PetscErrorCode SetUpSparseDelassus();
   VecH       rhs_, vf_s_, tmp_, loc_, rloc_, loc_all_;
   VecScatter to_all_ = nullptr;
 
