@@ -527,9 +527,14 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         tg_.row(q + kN).noalias() = Ht_.row(n) * dU;
         tg_.row(q + kN).noalias() += (h * (1 - t)) * (Ht_.row(n) * ddU);
       }
-      tAc_.setZero(m, m);
+      // With a valid factor of this step only the right-hand side is assembled (the O(m^2) matrix
+      // assembly then dominated one-column products).
+      const bool reuse = step && step->factor && step->factor->valid;
+      if (!reuse) tAc_.setZero(m, m);
+      else if (tAc_.rows() != m) tAc_.resize(m, m);
       trc_.setZero(m, k);
       auto Wrow = [&](Eigen::Index row, Eigen::Index q, PetscReal a) { // tAc_.row(q) += a W(row, closed)
+        if (reuse) return;
         for (Eigen::Index p = 0; p < m; ++p) tAc_(q, p) += a * W_(row, tclosed_[p]);
       };
       for (Eigen::Index q0 = 0; q0 < m; q0 += 3) {
@@ -582,7 +587,10 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
           }
         }
       }
-      tdr_ = tAc_.partialPivLu().solve(trc_);
+      if (step && step->factor) {
+        if (!step->factor->valid) step->factor->lu.compute(tAc_), step->factor->valid = true;
+        tdr_ = step->factor->lu.solve(trc_);
+      } else tdr_ = tAc_.partialPivLu().solve(trc_);
       tYc_ = Y_(Eigen::all, tclosed_);
       tvf_.noalias() += h * (tYc_ * tdr_);                                                     // delta dU^{i+1}
     }

@@ -31,6 +31,7 @@ struct ShootingCallbacks {
       // Products are tangents along the residual's flow at x, stored when SNES computed it.
       PetscCall(s->EnsureTrajectory(x));
       if (s->jdense_) PetscCall(s->BuildDenseJacobian(x));
+      else if (s->jlinear_) PetscCall(s->BuildLinearPreconditioner(x));
       PetscCall(VecCopy(x, s->xbase_));
       PetscFunctionReturn(0);
     }
@@ -42,7 +43,8 @@ struct ShootingCallbacks {
     }
     PetscFunctionReturn(0);
   }
-  // The dense bordered Jacobian's LU as preconditioner: GMRES converges in one iteration.
+  // The dense bordered Jacobian's LU as preconditioner: GMRES converges in one iteration (or the
+  // LU of the linearised one, -shoot_linear_pc: GMRES then iterates on what the cycle adds).
   static PetscErrorCode DenseSolve(PC pc, Vec v, Vec y)
   {
     Shooting       *s;
@@ -243,6 +245,20 @@ PetscErrorCode Shooting::SetFromOptions()
                             "Largest 2N + 1 for which the exact bordered Jacobian is built in one tangent integration and factorised "
                             "(above: GMRES on tangent products)",
                             "Shooting", jacobian_dense_max, &jacobian_dense_max, nullptr));
+  PetscCall(PetscOptionsBool("-linear_pc",
+                             "Above -shoot_jacobian_dense_max: precondition GMRES with the LU of the bordered Jacobian of the steady "
+                             "sliding linearisation's monodromy (one step tangent raised to N_s by squaring)",
+                             "Shooting", linear_pc, &linear_pc, nullptr));
+  PetscCall(PetscOptionsInt("-pre_periods",
+                            "Integrate this many periods T0 from the start (the energy estimate) before Newton: brings the start near "
+                            "an attracting cycle whose shape differs from the unstable mode's",
+                            "Shooting", pre_periods, &pre_periods, nullptr));
+  PetscCall(PetscOptionsReal("-tangent_cache_mb",
+                             "Memory for the per-step factors of the contact tangent system along the flow (reused by every "
+                             "Jacobian product of a Newton iteration; 0: refactorise in each product)",
+                             "Shooting", tangent_cache_mb, &tangent_cache_mb, nullptr));
+  PetscCall(PetscOptionsInt("-linear_pc_max", "Largest 2N for -shoot_linear_pc (dense 2N x 2N matrices)", "Shooting", linear_pc_max,
+                            &linear_pc_max, nullptr));
   PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
                             floquet_nev, &floquet_nev, nullptr));
   PetscOptionsEnd();
@@ -250,6 +266,8 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscCheck(floquet_phases == PETSC_DECIDE || floquet_phases >= 0, comm_, kErrInput,
              "option -shoot_floquet_phases = %" PetscInt_FMT ": expected >= 0", floquet_phases);
   PetscCheck(steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
+  PetscCheck(pre_periods >= 0, comm_, kErrInput, "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
+  PetscCheck(tangent_cache_mb >= 0, comm_, kErrInput, "option -shoot_tangent_cache_mb = %g: expected >= 0", (double)tangent_cache_mb);
 
   SNESLineSearch ls;
   KSP            ksp;
@@ -603,11 +621,13 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
     PetscCall(ti_->SetUp(*model_, trT_ / steps));
     T_setup_ = trT_;
     ++setups_;
+    for (auto &f : trF_) f.valid = false;
   }
   const PetscInt nc = model_->contacts.Size();
   if (!trC_ready_) {
     // The h-sources depend on the base flow only: once per stored trajectory.
     trC_.resize(N, steps);
+    for (auto &f : trF_) f.valid = false;
     for (PetscInt i = 0; i < steps; ++i) {
       sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sve_ = trU_.col(i);
       if (nc) sr_ = trR_.col(i);
@@ -620,7 +640,13 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   Eigen::MatrixXd    dU = dZ0.topRows(N), ddU = dZ0.bottomRows(N);
   Eigen::RowVectorXd dh = dT / (PetscReal)steps;
   ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
+  // One-column products (GMRES) would refactorise each step's closed-point system every time:
+  // keep the factors along this flow while they fit in -shoot_tangent_cache_mb.
+  const double factor_mb = 8.0 * 9.0 * nc * nc * steps / 1048576.0;
+  const bool   cache     = nc > 0 && factor_mb <= tangent_cache_mb;
+  if (cache && (PetscInt)trF_.size() != steps) trF_.assign(steps, {});
   for (PetscInt i = 0; i < steps; ++i) {
+    sd.factor = cache ? &trF_[i] : nullptr;
     sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sc_ = trC_.col(i);
     if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
     else sr_.resize(0), svs_.resize(0), sve_.resize(0);
@@ -652,6 +678,47 @@ PetscErrorCode Shooting::BuildDenseJacobian(Vec x)
   }
   jlu_.compute(Jd_);
   PetscCall(VecCopy(x, jx_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
+{
+  const PetscInt n2 = 2 * N_;
+  PetscFunctionBeginUser;
+  if (Mlin_.rows() != n2) {
+    // Weakly damped structural modes put many multipliers near the unit circle, spread round it:
+    // unpreconditioned GMRES needs about one iteration each. They are nearly those of the steady
+    // sliding linearisation, whose monodromy costs one step tangent (2N columns at the equilibrium
+    // reactions: every point closed and sliding, slip direction against V_c) and log2(N_s) squarings.
+    Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N_, n2), ddU = Eigen::MatrixXd::Zero(N_, n2);
+    dU.leftCols(N_).setIdentity();
+    ddU.rightCols(N_).setIdentity();
+    const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(r_init_.size());
+    PetscCall(ti_->StepTangent(r_init_, v0, dU, ddU));
+    Eigen::MatrixXd S(n2, n2), P = Eigen::MatrixXd::Identity(n2, n2), tmp(n2, n2);
+    S.topRows(N_)    = dU;
+    S.bottomRows(N_) = ddU;
+    for (PetscInt e = steps; e > 0; e >>= 1) {
+      if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
+      if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
+    }
+    Mlin_.swap(P);
+  }
+  // The period column is exact (one tangent integration of one column); the border is the anchor's.
+  Eigen::MatrixXd    dT1;
+  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Ones(1);
+  PetscCall(TangentFlow(x, Eigen::MatrixXd::Zero(n2, 1), dT, dT1));
+  Jd_.setZero(n2 + 1, n2 + 1);
+  Jd_.topLeftCorner(n2, n2) = Mlin_;
+  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
+  Jd_.col(n2).head(n2) = dT1.col(0);
+  if (anchored_) {
+    Eigen::VectorXd g(n2);
+    PetscCall(Full(GaU_, g.head(N_)));
+    PetscCall(Full(GadU_, g.tail(N_)));
+    Jd_.row(n2).head(n2) = g.transpose();
+  } else Jd_(n2, n2) = 1.0; // no phase row yet: keep the preconditioner regular
+  jlu_.compute(Jd_);
   PetscFunctionReturn(0);
 }
 
@@ -957,7 +1024,9 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(ti_->SetUp(*model_, T0 / steps));
   T_setup_ = T0;
   ++setups_;
-  jdense_ = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
+  jdense_  = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
+  jlinear_ = ExactJacobian() && !jdense_ && linear_pc && 2 * N_ <= linear_pc_max;
+  Mlin_.resize(0, 0);
   {
     KSP ksp;
     PC  pc;
@@ -970,6 +1039,11 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
       PetscCall(PCShellSetName(pc, "LU of the exact bordered Jacobian"));
       PetscCall(KSPSetTolerances(ksp, 1e-12, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
+    } else if (jlinear_) {
+      PetscCall(PCSetType(pc, PCSHELL));
+      PetscCall(PCShellSetContext(pc, this));
+      PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
+      PetscCall(PCShellSetName(pc, "LU of the bordered Jacobian of the sliding linearisation (-shoot_linear_pc)"));
     } else {
       PetscBool shell;
       PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
@@ -986,7 +1060,23 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   fail_reason_.clear();
   criterion_iterate_ = -1;
   PetscCall(CreateState(x.out()));
-  PetscCall(Pack(U0, dU0, T0, x));
+  if (pre_periods > 0) {
+    // Where the cycle's shape is far from the unstable mode's (many contacts with separation and
+    // stick), a few periods of the flow bring the start onto the attracting cycle's neighbourhood.
+    VecH U, dU;
+    PetscCall(VecDuplicate(U0, U.out()));
+    PetscCall(VecDuplicate(dU0, dU.out()));
+    PetscCall(VecCopy(U0, U));
+    PetscCall(VecCopy(dU0, dU));
+    for (PetscInt k = 0; k < pre_periods; ++k) {
+      PetscCall(Flow(U, dU, T0, U1_, dU1_, nullptr, nullptr));
+      PetscCall(VecCopy(U1_, U));
+      PetscCall(VecCopy(dU1_, dU));
+    }
+    PetscCall(PetscPrintf(comm_, "shooting: start after %" PetscInt_FMT " period(s) T0 of the flow from the given state (-shoot_pre_periods)\n",
+                          pre_periods));
+    PetscCall(Pack(U, dU, T0, x));
+  } else PetscCall(Pack(U0, dU0, T0, x));
   PetscCall(VecCopy(x, best_x_));
   VecH f;
   PetscCall(VecDuplicate(x, f.out()));

@@ -74,6 +74,14 @@ public:
   // c: StepTangentSource of that step; v_start: H^T dU^i.
   struct StepData {
     const Eigen::VectorXd *dUi, *dUn, *c, *v_start;
+    // Optional: the LU of this step's closed-point tangent system (it depends on the step's
+    // reactions and velocities, not on the columns), kept by the caller so that later tangent
+    // products along the same stored flow skip the O((3 n_c)^3) factorisation. Reset it (valid =
+    // false) whenever the flow or the step size changes.
+    struct Factor {
+      bool                                 valid = false;
+      Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+    } *factor = nullptr;
   };
   PetscErrorCode StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData &step, const Eigen::RowVectorXd &dh,
                              Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);

@@ -112,7 +112,14 @@ public:
   // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
   // factorised (the Krylov solve then converges in one iteration); above it GMRES on the products.
   PetscBool exact_jacobian = PETSC_TRUE;
-  PetscInt  jacobian_dense_max = 1000;
+  PetscInt  jacobian_dense_max = 200;
+  // -shoot_linear_pc: above jacobian_dense_max, precondition GMRES with the LU of the bordered
+  // Jacobian whose monodromy is that of the steady sliding linearisation (the step tangent at the
+  // equilibrium reactions, raised to N_s by squaring; once per solve), up to 2N <= linear_pc_max.
+  PetscBool linear_pc     = PETSC_TRUE;
+  PetscInt  linear_pc_max = 6000;
+  PetscReal tangent_cache_mb = 2048; // -shoot_tangent_cache_mb
+  PetscInt  pre_periods      = 0;    // -shoot_pre_periods
 
 private:
   friend struct ShootingCallbacks;
@@ -137,6 +144,7 @@ private:
   VecH            trx_;
   PetscReal       trT_ = 0;
   Eigen::MatrixXd trU_, trdU_, trR_, trV_, trC_;
+  std::vector<ThetaIntegrator::StepData::Factor> trF_; // per step of the stored flow
   Eigen::VectorXd sdUi_, sdUn_, sc_, svs_, sve_, sr_, vloc_;
   PetscErrorCode  EnsureTrajectory(Vec x);
   PetscErrorCode  Full(Vec v, Eigen::Ref<Eigen::VectorXd> out);
@@ -146,6 +154,9 @@ private:
   Eigen::MatrixXd Jd_;
   Eigen::PartialPivLU<Eigen::MatrixXd> jlu_;
   bool            jdense_ = false; // this solve uses the dense bordered Jacobian
+  bool            jlinear_ = false; // ... or the linearised-monodromy preconditioner (-shoot_linear_pc)
+  Eigen::MatrixXd Mlin_;            // its monodromy, built at the first Jacobian of a solve
+  PetscErrorCode  BuildLinearPreconditioner(Vec x);
   VecH            jx_;              // where Jd_ was built
   AllGather       gather_;
   PetscMPIInt     size_ = 1;
