@@ -11,23 +11,14 @@
       both ends, finite positive periods, and every listed event present (located inside [LO, HI]).
 """
 import os
-import re
-import signal
 import subprocess
 import sys
-import time
 
 import h5py
 import numpy as np
 
-failed = False
-
-
-def ok(cond, msg):
-    global failed
-    print(("ok   " if cond else "FAIL ") + msg)
-    failed = failed or not cond
-    return cond
+import check_results_io
+from check_results_io import ok, signal_after, status
 
 
 def parse(argv):
@@ -46,11 +37,6 @@ def parse(argv):
     return opts[0], args, cmd
 
 
-def status(f):
-    s = f.attrs.get("status", b"")
-    return s.decode() if isinstance(s, bytes) else str(s)
-
-
 def attr(g, name):
     v = g.attrs.get(name)
     return v.decode() if isinstance(v, bytes) else v
@@ -58,29 +44,8 @@ def attr(g, name):
 
 def interrupt(args, cmd):
     out = args["--output"]
-    if os.path.exists(out):
-        os.remove(out)
-    sig = signal.SIGTERM if args.get("--signal", "INT") == "TERM" else signal.SIGINT
-    name = "SIGTERM" if sig == signal.SIGTERM else "SIGINT"
     k = int(args.get("--after-points", "3"))
-    print("+ " + " ".join(cmd))
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
-    pat = re.compile(r"^cont [+-]\s*%d:" % k)
-    seen = []
-    for line in p.stdout:
-        seen.append(line)
-        if pat.search(line):
-            break
-    ok(p.poll() is None, f"still running after point {k}")
-    t0 = time.time()
-    p.send_signal(sig)
-    rest, err = p.communicate(timeout=120)
-    print("".join(seen) + rest)
-    print("--- stderr:\n" + err)
-    print(f"stopped {time.time() - t0:.2f} s after {name}")
-    ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127")
-    ok(re.search(r"^squeal: error: interrupted by " + name, err, re.M) is not None, f"stderr says 'interrupted by {name}'")
-    ok(out in err, "the message names the results file")
+    name = signal_after(cmd, out, r"^cont [+-]\s*%d:" % k, args.get("--signal", "INT"))
     if not ok(os.path.exists(out), f"{out} exists"):
         return
     with h5py.File(out, "r") as f:
@@ -129,7 +94,7 @@ def branch(args, cmd):
 def main():
     mode, args, cmd = parse(sys.argv[1:])
     {"interrupt": interrupt, "branch": branch}[mode](args, cmd)
-    sys.exit(1 if failed else 0)
+    sys.exit(1 if check_results_io.failures else 0)
 
 
 if __name__ == "__main__":

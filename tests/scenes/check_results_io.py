@@ -56,21 +56,23 @@ def status(f):
     return s.decode() if isinstance(s, bytes) else str(s)
 
 
-def interrupt(args, cmd):
-    out = args["--output"]
+def signal_after(cmd, out, pattern, which="INT"):
+    """Runs cmd, sends SIGINT (or SIGTERM) once a stdout line matches `pattern`, and checks the
+    clean stop: exit code, the message naming the signal and the results file. Returns the
+    signal's name."""
     if os.path.exists(out):
         os.remove(out)
-    sig = signal.SIGTERM if args.get("--signal", "INT") == "TERM" else signal.SIGINT
+    sig = signal.SIGTERM if which == "TERM" else signal.SIGINT
     name = "SIGTERM" if sig == signal.SIGTERM else "SIGINT"
     print("+ " + " ".join(cmd))
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
-    pat = re.compile(args["--after"])
+    pat = re.compile(pattern)
     seen = []
     for line in p.stdout:
         seen.append(line)
         if pat.search(line):
             break
-    ok(p.poll() is None, f"still running when a line matched /{args['--after']}/")
+    ok(p.poll() is None, f"still running when a line matched /{pattern}/")
     t0 = time.time()
     p.send_signal(sig)
     rest, err = p.communicate(timeout=120)
@@ -80,6 +82,12 @@ def interrupt(args, cmd):
     ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127 (clean stop, not killed)")
     ok(re.search(r"^squeal: error: interrupted by " + name, err, re.M) is not None, f"stderr says 'interrupted by {name}'")
     ok(out in err, "the message names the results file")
+    return name
+
+
+def interrupt(args, cmd):
+    out = args["--output"]
+    name = signal_after(cmd, out, args["--after"], args.get("--signal", "INT"))
     no_temporaries(out)
     if not ok(os.path.exists(out), f"{out} exists"):
         return
