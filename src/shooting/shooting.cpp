@@ -72,6 +72,23 @@ struct ShootingCallbacks {
     Shooting *s;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &s));
+    if (s->mono_exact_) {
+      // The exact tangent along the stored flow from Z0: no difference noise, no extra factorisation.
+      const PetscInt     N = s->N_;
+      Eigen::MatrixXd    dZ0(2 * N, 1), dZ1;
+      Eigen::VectorXd    part(N), out(2 * N + 1);
+      Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(1);
+      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
+      PetscCall(s->Full(s->wU_, part));
+      dZ0.col(0).head(N) = part;
+      PetscCall(s->Full(s->wdU_, part));
+      dZ0.col(0).tail(N) = part;
+      PetscCall(s->TangentFlow(s->mono_x_, dZ0, dT, dZ1));
+      out.head(2 * N) = dZ1.col(0);
+      out[2 * N]      = 0;
+      PetscCall(s->FromNatural(out, y));
+      PetscFunctionReturn(0);
+    }
     PetscCall(VecZeroEntries(s->aU_));
     PetscCall(VecZeroEntries(s->adU_));
     const PetscInt K = (PetscInt)s->mono_start_.size();
@@ -924,6 +941,12 @@ PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::ve
     PetscCall(PhaseStart(U0, dU0, phase_s_[k], mono_start_[k].first, mono_start_[k].second));
     PetscCall(Flow(mono_start_[k].first, mono_start_[k].second, T, mono_base_[k].first, mono_base_[k].second));
   }
+  // One phase on the dense back end: exact tangent products along the flow from Z0.
+  mono_exact_ = floquet_exact && ExactJacobian() && K == 1 && phase_s_[0] == 0;
+  if (mono_exact_) {
+    if (!mono_x_) PetscCall(CreateState(mono_x_.out()));
+    PetscCall(Pack(U0, dU0, T, mono_x_));
+  }
   // Z-space vectors: the shooting packing without T.
   PetscCall(VecCreateMPI(comm_, 2 * nloc_, PETSC_DETERMINE, z.out()));
   PetscCall(MatCreateShell(comm_, 2 * nloc_, 2 * nloc_, 2 * N, 2 * N, this, A.out()));
@@ -935,8 +958,8 @@ PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::ve
   PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
   PetscCall(EPSSetWhichEigenpairs(eps, EPS_LARGEST_MAGNITUDE));
   PetscCall(EPSSetDimensions(eps, PetscMin(floquet_nev, 2 * N - 2), PETSC_DEFAULT, PETSC_DEFAULT));
-  // Products carry ~fd_step relative noise: ask for no more than that allows.
-  PetscCall(EPSSetTolerances(eps, 1e-6, 200));
+  // Difference products carry ~fd_step relative noise: ask for no more than that allows.
+  PetscCall(EPSSetTolerances(eps, mono_exact_ ? 1e-8 : 1e-6, 200));
   PetscCall(EPSSetFromOptions(eps));
   PetscCall(EPSSolve(eps));
   PetscCall(EPSGetConverged(eps, &nconv));
@@ -1176,9 +1199,8 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
         for (Eigen::Index i = 0; i < e0.eigenvalues().size(); ++i) res.floquet_at_z0.push_back(e0.eigenvalues()(i));
       }
     } else {
-      res.floquet_method = "SLEPc, matrix-free finite differences";
-
       PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
+      res.floquet_method = mono_exact_ ? "SLEPc, matrix-free exact step tangents" : "SLEPc, matrix-free finite differences";
       res.floquet_phases = (PetscInt)phase_s_.size();
     }
     // Sorted by modulus; the one closest to 1 is the trivial one; stable if all others are inside.

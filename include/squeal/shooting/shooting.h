@@ -126,6 +126,8 @@ private:
   VecH mono_U0_, mono_dU0_;                        // Z0 of the matrix-free monodromy
   std::vector<std::pair<VecH, VecH>> mono_start_, mono_base_; // per phase: start and its flow
   PetscReal mono_T_ = 0;
+  bool      mono_exact_ = false; // matrix-free monodromy products from exact tangents along the flow from mono_x_
+  VecH      mono_x_;
   PetscErrorCode SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti);
   PetscErrorCode VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU); // G(Z)
   PetscErrorCode ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T); // shift{U,dU}_ = one step from Z0, minus Z0
