@@ -2,6 +2,27 @@
 
 namespace squeal {
 
+PetscErrorCode GatherVector(Vec v, bool to_all, std::vector<PetscReal> &out)
+{
+  VecScatter         sc;
+  Vec                w;
+  const PetscScalar *a;
+  PetscInt           n;
+  PetscFunctionBeginUser;
+  if (to_all) PetscCall(VecScatterCreateToAll(v, &sc, &w));
+  else PetscCall(VecScatterCreateToZero(v, &sc, &w));
+  PetscCall(VecScatterBegin(sc, v, w, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, v, w, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetLocalSize(w, &n));
+  PetscCall(VecGetArrayRead(w, &a));
+  out.assign(n, 0.0);
+  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(w, &a));
+  PetscCall(VecDestroy(&w));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode AllGather::SetUp(Vec like)
 {
   PetscFunctionBeginUser;

@@ -1,5 +1,6 @@
 #include "squeal/reduction/craig_bampton.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/options.h"
 #include "squeal/core/sparse.h"
 
@@ -66,26 +67,6 @@ PetscErrorCode GatherSubmatrix(Mat A, const std::vector<PetscInt> &rows, Dense &
   }
   PetscCall(MatDestroySubMatrices(1, &sub));
   PetscCall(ISDestroy(&is));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode GatherVec(Vec v, std::vector<PetscReal> &out)
-{
-  VecScatter         sc;
-  Vec                all;
-  const PetscScalar *a;
-  PetscInt           n;
-  PetscFunctionBeginUser;
-  PetscCall(VecScatterCreateToAll(v, &sc, &all));
-  PetscCall(VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecGetSize(all, &n));
-  PetscCall(VecGetArrayRead(all, &a));
-  out.assign(n, 0.0);
-  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
-  PetscCall(VecRestoreArrayRead(all, &a));
-  PetscCall(VecScatterDestroy(&sc));
-  PetscCall(VecDestroy(&all));
   PetscFunctionReturn(0);
 }
 
@@ -574,8 +555,8 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     PetscCall(MatCreateVecs(W, t.out(), nullptr));
     PetscCall(MatMultTranspose(W, FI, t));
     PetscCall(VecRestoreSubVector(full.F, isI, &FI));
-    PetscCall(GatherVec(t, tw));
-    PetscCall(GatherVec(full.F, Ffull));
+    PetscCall(GatherVector(t, true, tw));
+    PetscCall(GatherVector(full.F, true, Ffull));
     for (PetscInt k = 0; k < nB; ++k) Fr[perm[k]] = Ffull[Bsorted[k]] + tw[k];
     for (PetscInt k = 0; k < m; ++k) Fr[nB + k] = tw[nB + k];
     PetscCall(MatCreateVecs(red.K, nullptr, red.F.out()));

@@ -1,5 +1,6 @@
 #include "squeal/stability/stability.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
@@ -251,29 +252,6 @@ PetscErrorCode StabilitySolver::ViewFromOptions(const StabilityResult &res) cons
 
 namespace squeal {
 
-namespace {
-// Gathers a distributed vector on rank 0 (empty elsewhere).
-PetscErrorCode GatherToZero(Vec v, std::vector<PetscReal> &out)
-{
-  VecScatter         sc;
-  Vec                z;
-  const PetscScalar *a;
-  PetscInt           n;
-  PetscFunctionBeginUser;
-  PetscCall(VecScatterCreateToZero(v, &sc, &z));
-  PetscCall(VecScatterBegin(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecGetLocalSize(z, &n));
-  PetscCall(VecGetArrayRead(z, &a));
-  out.assign(n, 0.0);
-  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
-  PetscCall(VecRestoreArrayRead(z, &a));
-  PetscCall(VecDestroy(&z));
-  PetscCall(VecScatterDestroy(&sc));
-  PetscFunctionReturn(0);
-}
-} // namespace
-
 PetscErrorCode WriteStability(const StabilityResult &res, io::H5Writer &out)
 {
   const hsize_t k = res.modes.size();
@@ -310,9 +288,9 @@ PetscErrorCode WriteStability(const StabilityResult &res, io::H5Writer &out)
     PetscCall(VecGetSize(res.modes[0].phi_re, &N));
     std::vector<PetscReal> re(N * k), im(N * k), col;
     for (hsize_t j = 0; j < k; ++j) {
-      PetscCall(GatherToZero(res.modes[j].phi_re, col));
+      PetscCall(GatherVector(res.modes[j].phi_re, false, col));
       for (size_t i = 0; i < col.size(); ++i) re[i * k + j] = col[i];
-      PetscCall(GatherToZero(res.modes[j].phi_im, col));
+      PetscCall(GatherVector(res.modes[j].phi_im, false, col));
       for (size_t i = 0; i < col.size(); ++i) im[i * k + j] = col[i];
     }
     PetscCall(out.WriteArray("/stability/modes/re", {(hsize_t)N, k}, re.data()));

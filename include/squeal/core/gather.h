@@ -8,7 +8,13 @@
 
 #include <Eigen/Dense>
 
+#include <vector>
+
 namespace squeal {
+
+// One-off gather of a distributed vector: in full on every rank (to_all) or on rank 0 only
+// (empty elsewhere). Collective. For repeated gathers of the same layout use AllGather.
+PetscErrorCode GatherVector(Vec v, bool to_all, std::vector<PetscReal> &out);
 
 class AllGather {
 public:
