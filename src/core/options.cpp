@@ -62,8 +62,9 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
                        (len >= 4 && std::strcmp(names[i] + len - 4, "view") == 0)))
       continue;
     // Factorisation options (-eq_mat_mumps_icntl_14, -theta_mat_mumps_*) are read when a factor is
-    // set up, after the first check, and not at all when a run needs no such factor.
-    if (known || std::strstr(names[i], "mat_mumps_")) continue;
+    // set up, after the first check, and not at all when a run needs no such factor; the Floquet
+    // eigensolver's (-shoot_floquet_eps_*) once shooting has converged, and not at all by the block Arnoldi.
+    if (known || std::strstr(names[i], "mat_mumps_") || std::strstr(names[i], "floquet_eps_")) continue;
     if (count < 5) unused += std::string(count ? ", -" : "-") + names[i];
     ++count;
   }

@@ -520,13 +520,15 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
     const Eigen::Index m = (Eigen::Index)tclosed_.size();
     if (m > 0) {
       tw_.resize(m, k), tg_.resize(m, k);
-      tHc_ = Ht_(tclosed_, Eigen::all);
-      tw_.noalias() = tHc_ * tvf_;                                                             // delta w_f
-      for (Eigen::Index q = 0; q < m; q += 3) {                                                  // delta g~^i
-        const Eigen::Index n = tclosed_[q] + kN;
-        tg_.row(q + kN).noalias() = Ht_.row(n) * dU;
-        tg_.row(q + kN).noalias() += (h * (1 - t)) * (Ht_.row(n) * ddU);
-      }
+      // delta w_f = H^T delta v_f and delta g~^i = H_n^T (delta U + h (1 - theta) delta dU) in one
+      // pass over the whole H^T (contiguous), the closed rows picked afterwards: copying the closed
+      // rows of H^T, or reading its rows one by one, cost more than the product for few columns.
+      tX_.resize(n_, 2 * k);
+      tX_.leftCols(k)  = tvf_;
+      tX_.rightCols(k) = dU + (h * (1 - t)) * ddU;
+      tHv_.noalias()   = Ht_ * tX_;
+      for (Eigen::Index q = 0; q < m; ++q) tw_.row(q) = tHv_.row(tclosed_[q]).head(k);
+      for (Eigen::Index q = 0; q < m; q += 3) tg_.row(q + kN) = tHv_.row(tclosed_[q] + kN).tail(k);
       // With a valid factor of this step only the right-hand side is assembled (the O(m^2) matrix
       // assembly then dominated one-column products).
       const bool reuse = step && step->factor && step->factor->valid;
@@ -591,8 +593,10 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         if (!step->factor->valid) step->factor->lu.compute(tAc_), step->factor->valid = true;
         tdr_ = step->factor->lu.solve(trc_);
       } else tdr_ = tAc_.partialPivLu().solve(trc_);
-      tYc_ = Y_(Eigen::all, tclosed_);
-      tvf_.noalias() += h * (tYc_ * tdr_);                                                     // delta dU^{i+1}
+      // delta dU^{i+1} += h Y delta r, with delta r = 0 on the open points (Y read in place).
+      tdrf_.setZero(3 * nc_, k);
+      for (Eigen::Index q = 0; q < m; ++q) tdrf_.row(tclosed_[q]) = tdr_.row(q);
+      tvf_.noalias() += h * (Y_ * tdrf_);
     }
   }
   dU += h * (t * tvf_ + (1 - t) * ddU);

@@ -7,11 +7,27 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <random>
 #include <functional>
 #include <cmath>
 #include <cstdio>
 
 namespace squeal {
+
+namespace {
+// -log_view events: the parts of a shooting run (SNESSolve is PETSc's own).
+PetscLogEvent ev_pre = 0, ev_floquet = 0, ev_tangent = 0, ev_flow = 0;
+PetscErrorCode RegisterEvents()
+{
+  PetscFunctionBeginUser;
+  if (ev_pre) PetscFunctionReturn(0);
+  PetscCall(PetscLogEventRegister("ShootPrePeriods", SNES_CLASSID, &ev_pre));
+  PetscCall(PetscLogEventRegister("ShootFloquet", SNES_CLASSID, &ev_floquet));
+  PetscCall(PetscLogEventRegister("ShootTangentFlow", SNES_CLASSID, &ev_tangent));
+  PetscCall(PetscLogEventRegister("ShootFlow", SNES_CLASSID, &ev_flow));
+  PetscFunctionReturn(0);
+}
+} // namespace
 
 // SNES callbacks: C functions that reach the Shooting object through their context.
 struct ShootingCallbacks {
@@ -116,12 +132,25 @@ struct ShootingCallbacks {
     PetscCall(s->Pack(s->aU_, s->adU_, 0.0, y));
     PetscFunctionReturn(0);
   }
+  // GMRES on products: PETSc's test, and once ||H|| / ||Z0|| < eps1 the solve only has to tell
+  // whether |dT| / T < eps2 (quadratic convergence makes dT tiny there): a residual reduction of
+  // 1e-2 decides that and still improves the iterate, at a third of the products of a tight solve.
+  static PetscErrorCode KrylovConverged(KSP ksp, PetscInt it, PetscReal rnorm, KSPConvergedReason *reason, void *ctx)
+  {
+    auto *s = static_cast<Shooting *>(ctx);
+    PetscFunctionBeginUser;
+    PetscCall(KSPConvergedDefault(ksp, it, rnorm, reason, s->ksp_default_ctx_));
+    if (it == 0) s->rnorm0_ = rnorm;
+    else if (*reason == KSP_CONVERGED_ITERATING && s->confirm_only_ && rnorm <= 1e-2 * s->rnorm0_) *reason = KSP_CONVERGED_RTOL;
+    PetscFunctionReturn(0);
+  }
   static PetscErrorCode Update(SNES snes, PetscInt)
   {
     Shooting *s;
     Vec       x;
     PetscFunctionBeginUser;
     PetscCall(SNESGetApplicationContext(snes, &s));
+    s->confirm_only_ = s->ew && !s->hist_res_.empty() && s->hist_res_.back() < s->eps1;
     PetscCall(SNESGetSolution(snes, &x));
     PetscCall(s->SetAnchor(x));
     // The new anchor is x itself, so the phase row of F(x) is 0: set it rather than integrate
@@ -229,6 +258,7 @@ struct ShootingCallbacks {
 
 Shooting::~Shooting()
 {
+  if (ksp_default_ctx_) (void)KSPConvergedDefaultDestroy(ksp_default_ctx_);
   if (snes_) PetscCallVoid(SNESDestroy(&snes_));
 }
 
@@ -236,6 +266,7 @@ PetscErrorCode Shooting::SetFromOptions()
 {
   OptionChecks checks;
   PetscFunctionBeginUser;
+  PetscCall(RegisterEvents());
   PetscOptionsBegin(comm_, "shoot_", "Shooting for the limit cycle", "Shooting");
   PetscCall(PetscOptionsInt("-steps", "Theta-method steps per period N_s (h = T / N_s)", "Shooting", steps, &steps, nullptr));
   SquealOptionsReal("-eps1", "Stop when ||Z(Z0,T) - Z0|| / ||Z0|| < eps1 ...", "Shooting", &eps1, Range::Positive(), checks);
@@ -270,6 +301,14 @@ PetscErrorCode Shooting::SetFromOptions()
                             "Integrate this many periods T0 from the start (the energy estimate) before Newton: brings the start near "
                             "an attracting cycle whose shape differs from the unstable mode's",
                             "Shooting", pre_periods, &pre_periods, nullptr));
+  PetscCall(PetscOptionsBool("-ew",
+                             "GMRES on tangent products: inexact Newton, with Eisenstat-Walker Krylov tolerances "
+                             "(-shoot_snes_ksp_ew_* tune them) and a residual reduction of 1e-2 for the step that only confirms |dT|/T < eps2",
+                             "Shooting", ew, &ew, nullptr));
+  SquealOptionsReal("-pre_tol",
+                    "Stop the -shoot_pre_periods early once the period-corrected return distance |Z(T) - Z0 + dt G| / |Z(T)| is "
+                    "below this (0: run them all)",
+                    "Shooting", &pre_tol, Range::NonNegative(), checks);
   PetscCall(PetscOptionsReal("-tangent_cache_mb",
                              "Memory for the per-step factors of the contact tangent system along the flow (reused by every "
                              "Jacobian product of a Newton iteration; 0: refactorise in each product)",
@@ -278,6 +317,15 @@ PetscErrorCode Shooting::SetFromOptions()
                             &linear_pc_max, nullptr));
   PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
                             floquet_nev, &floquet_nev, nullptr));
+  PetscCall(PetscOptionsInt("-floquet_block",
+                            "Matrix-free route on exact tangents: block Arnoldi with this many columns per tangent integration "
+                            "(0: SLEPc Krylov-Schur, one column per integration)",
+                            "Shooting", floquet_block, &floquet_block, nullptr));
+  PetscCall(PetscOptionsBool("-floquet_monitor", "Print the block Arnoldi's progress", "Shooting", floquet_monitor, &floquet_monitor, nullptr));
+  PetscCall(PetscOptionsInt("-floquet_max_dim", "Block Arnoldi: largest Krylov basis (columns)", "Shooting", floquet_max_dim,
+                            &floquet_max_dim, nullptr));
+  SquealOptionsReal("-floquet_tol", "Block Arnoldi: relative residual of the -shoot_floquet_nev largest multipliers", "Shooting",
+                    &floquet_tol, Range::Positive(), checks);
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCheck(floquet_phases == PETSC_DECIDE || floquet_phases >= 0, comm_, kErrInput,
@@ -406,6 +454,7 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   StepInfo        info;
   std::vector<int> prev, cur;
   PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(ev_flow, 0, 0, 0, 0));
   // A new period means a new step size: (S1)-(S3) again.
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
@@ -452,6 +501,7 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   if (run < steps) partial_steps_ += run;
   else ++evaluations_;
   if (r_end) *r_end = r;
+  PetscCall(PetscLogEventEnd(ev_flow, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
@@ -630,6 +680,7 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
 {
   const PetscInt N = N_;
   PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(ev_tangent, 0, 0, 0, 0));
   PetscCheck(ExactJacobian(), comm_, PETSC_ERR_SUP,
              "shooting: exact tangents need the dense theta back end (N = %" PetscInt_FMT " > -theta_dense_max) and -shoot_exact_jacobian",
              N);
@@ -673,6 +724,7 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   dZ1.topRows(N)    = dU;
   dZ1.bottomRows(N) = ddU;
   ++evaluations_, ++tangents_;
+  PetscCall(PetscLogEventEnd(ev_tangent, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
@@ -947,6 +999,10 @@ PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::ve
     if (!mono_x_) PetscCall(CreateState(mono_x_.out()));
     PetscCall(Pack(U0, dU0, T, mono_x_));
   }
+  if (mono_exact_ && floquet_block > 0) {
+    PetscCall(FloquetBlockArnoldi(mult));
+    PetscFunctionReturn(0);
+  }
   // Z-space vectors: the shooting packing without T.
   PetscCall(VecCreateMPI(comm_, 2 * nloc_, PETSC_DETERMINE, z.out()));
   PetscCall(MatCreateShell(comm_, 2 * nloc_, 2 * nloc_, 2 * N, 2 * N, this, A.out()));
@@ -969,6 +1025,95 @@ PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::ve
     PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
     mult.emplace_back(PetscRealPart(kr), PetscRealPart(ki));
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::FloquetBlockArnoldi(std::vector<std::complex<PetscReal>> &mult)
+{
+  using Eigen::Index;
+  using Eigen::MatrixXd;
+  const Index n = 2 * N_, b = floquet_block;
+  const Index nev = std::min<Index>(floquet_nev, n - 2);
+  const bool  mon = floquet_monitor;
+  PetscFunctionBeginUser;
+  if (n <= 4 * b) {
+    // A few blocks would span the space: the whole monodromy in one integration of n columns.
+    MatrixXd Mono;
+    PetscCall(TangentFlow(mono_x_, MatrixXd::Identity(n, n), Eigen::RowVectorXd::Zero(n), Mono));
+    Eigen::EigenSolver<MatrixXd> es(Mono, false);
+    mult.clear();
+    for (Index i = 0; i < n; ++i) mult.push_back(es.eigenvalues()(i));
+    std::sort(mult.begin(), mult.end(), [](auto a, auto c) { return std::abs(a) > std::abs(c); });
+    mult.resize(nev);
+    floquet_products_ = 1;
+    PetscFunctionReturn(0);
+  }
+  // Blocks of the Krylov basis: up to -shoot_floquet_max_dim columns, and never past the space.
+  const Index mmax = std::max<Index>(1, std::min<Index>(floquet_max_dim / b, n / b - 1));
+  MatrixXd    V(n, (mmax + 1) * b), H = MatrixXd::Zero((mmax + 1) * b, mmax * b), W, C;
+  {
+    // The same pseudo-random start on every rank (every rank holds the whole basis).
+    std::mt19937                     gen(2027);
+    std::normal_distribution<double> nd;
+    MatrixXd                         R0(n, b);
+    for (Index j = 0; j < b; ++j)
+      for (Index i = 0; i < n; ++i) R0(i, j) = nd(gen);
+    Eigen::HouseholderQR<MatrixXd> qr(R0);
+    V.leftCols(b) = qr.householderQ() * MatrixXd::Identity(n, b);
+  }
+  const Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(b);
+  const PetscReal          w  = 2 * PETSC_PI / mono_T_;
+  std::vector<std::complex<PetscReal>> ritz;
+  PetscInt                             used = 0;
+  for (Index j = 0; j < mmax; ++j) {
+    // On D M D^-1, D = diag(w I, I), w = 2 pi / T: same multipliers, but displacement and velocity
+    // columns of one size (M itself mixes them by factors of w ~ 1e3-1e5), which is far closer to
+    // normal, and Arnoldi's residuals then mean what they say.
+    C = V.middleCols(j * b, b);
+    C.topRows(N_) /= w;
+    PetscCall(TangentFlow(mono_x_, C, dT, W));
+    W.topRows(N_) *= w;
+    ++used;
+    const Index k = (j + 1) * b;
+    // Block Gram-Schmidt, twice (one pass loses orthogonality on the clustered multipliers).
+    for (int pass = 0; pass < 2; ++pass) {
+      C.noalias() = V.leftCols(k).transpose() * W;
+      W.noalias() -= V.leftCols(k) * C;
+      H.block(0, j * b, k, b) += C;
+    }
+    Eigen::HouseholderQR<MatrixXd> qr(W);
+    const MatrixXd                 R = qr.matrixQR().topRows(b).triangularView<Eigen::Upper>();
+    V.middleCols(k, b)               = qr.householderQ() * MatrixXd::Identity(n, b);
+    H.block(k, j * b, b, b)          = R;
+    // Ritz values of the block Hessenberg matrix and their residuals |R y_last| (y of unit norm).
+    Eigen::EigenSolver<MatrixXd> es(H.topLeftCorner(k, k), true);
+    std::vector<Index>           order(k);
+    for (Index i = 0; i < k; ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](Index a, Index c) { return std::abs(es.eigenvalues()(a)) > std::abs(es.eigenvalues()(c)); });
+    ritz.clear();
+    PetscReal worst = 0;
+    for (Index i = 0; i < std::min(nev, k); ++i) {
+      const Eigen::VectorXcd y   = es.eigenvectors().col(order[i]).normalized();
+      const std::complex<PetscReal> th = es.eigenvalues()(order[i]);
+      const PetscReal res = (R.cast<std::complex<PetscReal>>() * y.tail(b)).norm() / std::max(std::abs(th), PETSC_SMALL);
+      worst               = std::max(worst, res);
+      ritz.push_back(th);
+    }
+    if (mon)
+      PetscCall(PetscPrintf(comm_, "  Floquet block Arnoldi: %" PetscInt_FMT " x %" PetscInt_FMT " columns, largest |L| = %.6f, worst relative residual of the %" PetscInt_FMT " largest %.2e\n",
+                            (PetscInt)(j + 1), (PetscInt)b, ritz.empty() ? 0.0 : (double)std::abs(ritz[0]), (PetscInt)nev, (double)worst));
+    if (k >= nev && worst <= floquet_tol) break;
+    // An invariant subspace: the Ritz values are exact.
+    if (R.diagonal().cwiseAbs().minCoeff() <= 1e-13 * H.topLeftCorner(k, k).norm()) break;
+    if (j + 1 == mmax) {
+      char msg[200];
+      std::snprintf(msg, sizeof msg, "Floquet block Arnoldi: the %d largest multipliers reached a relative residual of %.1e, not %.1e, "
+                    "in %d columns (-shoot_floquet_max_dim)", (int)nev, (double)worst, (double)floquet_tol, (int)k);
+      PetscCall(PetscPrintf(comm_, "shooting: warning: %s\n", msg));
+    }
+  }
+  floquet_products_ = used;
+  mult = ritz;
   PetscFunctionReturn(0);
 }
 
@@ -1042,13 +1187,28 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
-  evaluations_ = tangents_ = setups_ = partial_steps_ = 0;
+  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = 0;
+  pre_T_       = T0;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
   PetscCall(ti_->SetUp(*model_, T0 / steps));
   T_setup_ = T0;
   ++setups_;
   jdense_  = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
   jlinear_ = ExactJacobian() && !jdense_ && linear_pc && 2 * N_ <= linear_pc_max;
+  {
+    // GMRES on tangent products (one period integration each): far from the cycle Newton's step
+    // needs no 1e-6 linear solve, so the Krylov tolerance follows the residual's decrease
+    // (Eisenstat-Walker). On the 542-DOF pad: 58 products instead of 142 for the same cycle.
+    // The dense Jacobian's LU solves exactly in one iteration: nothing to save there.
+    PetscBool set = PETSC_FALSE;
+    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_ksp_ew", &set));
+    if (!set) {
+      PetscCall(SNESKSPSetUseEW(snes_, (PetscBool)(ew && !jdense_ && ExactJacobian())));
+      // PETSc's default rtol_max 0.9 lets a step after a residual increase (status changes make
+      // the period map non-smooth) stop after 2 GMRES iterations, and Newton then crawls: cap at 0.1.
+      PetscCall(SNESKSPSetParametersEW(snes_, PETSC_DEFAULT, 0.1, 0.1, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
+    }
+  }
   Mlin_.resize(0, 0);
   {
     KSP ksp;
@@ -1063,6 +1223,8 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       PetscCall(PCShellSetName(pc, "LU of the exact bordered Jacobian"));
       PetscCall(KSPSetTolerances(ksp, 1e-12, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
     } else if (jlinear_) {
+      if (!ksp_default_ctx_) PetscCall(KSPConvergedDefaultCreate(&ksp_default_ctx_));
+      PetscCall(KSPSetConvergenceTest(ksp, ShootingCallbacks::KrylovConverged, this, nullptr));
       PetscCall(PCSetType(pc, PCSHELL));
       PetscCall(PCShellSetContext(pc, this));
       PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
@@ -1084,21 +1246,60 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   criterion_iterate_ = -1;
   PetscCall(CreateState(x.out()));
   if (pre_periods > 0) {
+    PetscCall(PetscLogEventBegin(ev_pre, 0, 0, 0, 0));
     // Where the cycle's shape is far from the unstable mode's (many contacts with separation and
-    // stick), a few periods of the flow bring the start onto the attracting cycle's neighbourhood.
-    VecH U, dU;
+    // stick), periods of the flow bring the start into the attracting cycle's neighbourhood. After
+    // each period the return distance is read with the period corrected to first order along the
+    // end point's vector field G: dt = -G.(Z1 - Z)/|G|^2, e = |Z1 - Z + dt G| / |Z1| (the residual
+    // Newton would see at T + dt). It stops once e < -shoot_pre_tol and starts Newton at T + dt.
+    VecH            U, dU;
+    Eigen::VectorXd r;
+    PetscBool       mon = PETSC_FALSE;
+    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
     PetscCall(VecDuplicate(U0, U.out()));
     PetscCall(VecDuplicate(dU0, dU.out()));
     PetscCall(VecCopy(U0, U));
     PetscCall(VecCopy(dU0, dU));
-    for (PetscInt k = 0; k < pre_periods; ++k) {
-      PetscCall(Flow(U, dU, T0, U1_, dU1_, nullptr, nullptr));
+    PetscReal T = T0, e = PETSC_INFINITY;
+    PetscInt  k = 0;
+    while (k < pre_periods) {
+      PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
+      ++k;
+      PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
+      PetscScalar a1, a2, b1, b2;
+      PetscReal   n1, n2;
+      PetscCall(VecWAXPY(wU_, -1.0, U, U1_));
+      PetscCall(VecWAXPY(wdU_, -1.0, dU, dU1_));
+      PetscCall(VecDot(wU_, gU_, &a1));
+      PetscCall(VecDot(wdU_, gdU_, &a2));
+      PetscCall(VecDot(gU_, gU_, &b1));
+      PetscCall(VecDot(gdU_, gdU_, &b2));
+      const PetscReal dt = PetscRealPart(b1 + b2) > 0 ? -PetscRealPart(a1 + a2) / PetscRealPart(b1 + b2) : 0.0;
+      PetscCall(VecAXPY(wU_, dt, gU_));
+      PetscCall(VecAXPY(wdU_, dt, gdU_));
+      PetscCall(VecNorm(wU_, NORM_2, &n1));
+      PetscCall(VecNorm(wdU_, NORM_2, &n2));
+      const PetscReal d = std::hypot(n1, n2);
+      PetscCall(VecNorm(U1_, NORM_2, &n1));
+      PetscCall(VecNorm(dU1_, NORM_2, &n2));
+      e = d / std::hypot(n1, n2);
       PetscCall(VecCopy(U1_, U));
       PetscCall(VecCopy(dU1_, dU));
+      if (mon)
+        PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
+                              (double)(T + dt)));
+      // The corrected period is used from here on only while it stays near T0: far from the cycle
+      // the first-order correction can be large and meaningless.
+      if (std::abs(dt) < 0.05 * T0) T += dt;
+      if (e < pre_tol) break;
     }
-    PetscCall(PetscPrintf(comm_, "shooting: start after %" PetscInt_FMT " period(s) T0 of the flow from the given state (-shoot_pre_periods)\n",
-                          pre_periods));
-    PetscCall(Pack(U, dU, T0, x));
+    PetscCall(PetscPrintf(comm_,
+                          "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
+                          ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
+                          k, pre_periods, (double)pre_tol, (double)e, (double)T));
+    pre_done_ = k, pre_T_ = T;
+    PetscCall(PetscLogEventEnd(ev_pre, 0, 0, 0, 0));
+    PetscCall(Pack(U, dU, T, x));
   } else PetscCall(Pack(U0, dU0, T0, x));
   PetscCall(VecCopy(x, best_x_));
   VecH f;
@@ -1172,6 +1373,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   }
   PetscCall(Orbit(aU_, adU_, res.period, res));
   if (res.converged && floquet) {
+    PetscCall(PetscLogEventBegin(ev_floquet, 0, 0, 0, 0));
     PetscInt N;
     PetscCall(VecGetSize(model.F, &N));
     if (2 * N <= floquet_dense_max) {
@@ -1200,7 +1402,9 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       }
     } else {
       PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
-      res.floquet_method = mono_exact_ ? "SLEPc, matrix-free exact step tangents" : "SLEPc, matrix-free finite differences";
+      res.floquet_method = !mono_exact_ ? "SLEPc, matrix-free finite differences"
+                           : floquet_block > 0 ? "block Arnoldi on exact step tangents"
+                                               : "SLEPc, matrix-free exact step tangents";
       res.floquet_phases = (PetscInt)phase_s_.size();
     }
     // Sorted by modulus; the one closest to 1 is the trivial one; stable if all others are inside.
@@ -1219,10 +1423,13 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       res.stable_cycle = others < 1;
     }
     if (!res.floquet_at_z0.empty()) classify(res.floquet_at_z0, res.trivial_at_z0, res.largest_at_z0);
+    PetscCall(PetscLogEventEnd(ev_floquet, 0, 0, 0, 0));
   }
   res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
   res.tangent_evaluations = tangents_;
   res.setups              = setups_;
+  res.pre_periods         = pre_done_;
+  res.pre_period          = pre_T_;
   PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)",
              res.reason.c_str(), (double)res.residual, (double)res.period);
   PetscFunctionReturn(0);

@@ -142,7 +142,7 @@ private:
   Eigen::MatrixXd tvf_, tw_, tg_, trhs_, tA_, tdr_; // StepTangent work arrays
   std::vector<int> tstatus_;
   std::vector<Eigen::Index> tclosed_;               // local rows of the closed points
-  Eigen::MatrixXd tAc_, trc_, tHc_, tYc_;
+  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tdrf_;
   Eigen::VectorXd tq_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
   PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,

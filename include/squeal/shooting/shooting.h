@@ -47,6 +47,9 @@ struct ShootingResult {
   // flow_evaluations counts partial flows pro rata (steps / N_s, rounded up). Of them: linear integrations of the step tangents (Jacobian products and exact
   // monodromies); set-ups of the step matrices (one per new period).
   PetscInt                             tangent_evaluations = 0, setups = 0;
+  // -shoot_pre_periods: periods of flow run before Newton, and the period-corrected T they ended with.
+  PetscInt                             pre_periods = 0;
+  PetscReal                            pre_period  = 0;
   PetscReal                            period = 0, residual = 0; // ||H|| / ||Z0|| at the returned iterate
   std::vector<PetscReal>               residual_history, period_history;
   std::vector<PetscReal>               Z0;                 // (U, dU) on rank 0
@@ -104,6 +107,11 @@ public:
   // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell
   // whose product is a forward difference of the flow: for models too large for 2N integrations.
   PetscErrorCode FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult);
+  // The exact-tangent case of it (one phase, dense back end) by block Arnoldi: each tangent
+  // integration carries -shoot_floquet_block columns, so the step matrices are read once for all
+  // of them (matrix-matrix instead of matrix-vector products); no restart, the basis grows until
+  // the floquet_nev largest Ritz values have relative residuals below floquet_tol.
+  PetscErrorCode FloquetBlockArnoldi(std::vector<std::complex<PetscReal>> &mult);
 
   PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
@@ -117,9 +125,14 @@ public:
   // Jacobian whose monodromy is that of the steady sliding linearisation (the step tangent at the
   // equilibrium reactions, raised to N_s by squaring; once per solve), up to 2N <= linear_pc_max.
   PetscBool linear_pc     = PETSC_TRUE;
+  PetscBool ew            = PETSC_TRUE; // -shoot_ew: inexact Newton for GMRES on products (Eisenstat-Walker)
   PetscInt  linear_pc_max = 6000;
+  PetscInt  floquet_block = 16, floquet_max_dim = 640; // -shoot_floquet_block, -shoot_floquet_max_dim
+  PetscReal floquet_tol   = 1e-8;                      // -shoot_floquet_tol
+  PetscBool floquet_monitor = PETSC_FALSE;             // -shoot_floquet_monitor
   PetscReal tangent_cache_mb = 2048; // -shoot_tangent_cache_mb
-  PetscInt  pre_periods      = 0;    // -shoot_pre_periods
+  PetscInt  pre_periods      = 0;    // -shoot_pre_periods: at most this many periods of flow before Newton
+  PetscReal pre_tol          = 0.05; // -shoot_pre_tol: ... stopping once the return distance is below
 
 private:
   friend struct ShootingCallbacks;
@@ -166,6 +179,12 @@ private:
   // Bisection flows of the phase pieces stop after flow_stop_ steps; their steps, in partial_steps_,
   // count as period integrations pro rata.
   PetscInt        flow_stop_ = -1, partial_steps_ = 0;
+  PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
+  PetscReal       pre_T_    = 0; // ... and the period they ended with
+  void           *ksp_default_ctx_ = nullptr; // KSPConvergedDefault's, wrapped by KrylovConverged
+  PetscReal       rnorm0_          = 0;
+  bool            confirm_only_    = false; // this Newton step only confirms |dT| / T < eps2
+  PetscInt        floquet_products_ = 0; // block tangent integrations of the last block Arnoldi
 
   MPI_Comm                 comm_;
   const Model             *model_ = nullptr;
