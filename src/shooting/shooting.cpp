@@ -1078,6 +1078,28 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   PetscCall(VecGetSize(U0, &N));
+  const PetscInt nc     = model_->contacts.Size();
+  PetscBool      stored = PETSC_FALSE;
+  if (tr_valid_ && trT_ == T && trU_.cols() == steps + 1 && trR_.rows() == 3 * nc) {
+    PetscCall(Pack(U0, dU0, T, xp_));
+    PetscCall(VecEqual(xp_, trx_, &stored));
+  }
+  res.orbit_t.clear();
+  res.orbit_U.clear();
+  res.orbit_status.clear();
+  if (stored) {
+    // The converged residual's flow is this orbit, stored with its reactions: no stepping, no scatters.
+    if (rank == 0) {
+      for (PetscInt i = 0; i <= steps; ++i) {
+        res.orbit_U.insert(res.orbit_U.end(), trU_.col(i).data(), trU_.col(i).data() + N);
+        res.orbit_t.push_back(i * T / steps);
+        if (i > 0 && nc > 0) {
+          ti_->Contact().Status(trR_.col(i - 1), st);
+          res.orbit_status.insert(res.orbit_status.end(), st.begin(), st.end());
+        }
+      }
+    }
+  } else {
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
     T_setup_ = T;
@@ -1088,10 +1110,6 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
   PetscCall(VecScatterCreateToZero(U0, &sc, &z));
   PetscCall(VecCopy(U0, U1_));
   PetscCall(VecCopy(dU0, dU1_));
-  const PetscInt nc = model_->contacts.Size();
-  res.orbit_t.clear();
-  res.orbit_U.clear();
-  res.orbit_status.clear();
   for (PetscInt i = 0; i <= steps; ++i) {
     if (i > 0) PetscCall(ti_->Step(U1_, dU1_, r, &info));
     PetscCall(VecScatterBegin(sc, U1_, z, INSERT_VALUES, SCATTER_FORWARD));
@@ -1110,6 +1128,7 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
   }
   PetscCall(VecDestroy(&z));
   PetscCall(VecScatterDestroy(&sc));
+  }
   if (rank == 0) {
     res.peak_to_peak.assign(N, 0.0);
     for (PetscInt k = 0; k < N; ++k) {
