@@ -873,7 +873,7 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
   // t = 0 at W = 1/32 and 1/16; at W = 1/4 a stick onset moved by 7.6e-6 of a step.
   struct Probe {
     std::vector<PetscInt> sig;
-    PetscInt              lo = 0; // column k of Z (state) and R (reaction entering the step) is step lo + k
+    PetscInt              lo = 0; // column k of Z (this rank's rows of U, dU) and R (reaction entering the step) is step lo + k
     Eigen::MatrixXd       Z, R;
     std::vector<int>      st_lo; // statuses entering step lo (R's first column may be a mean, not a status)
   };
@@ -884,14 +884,25 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
   for (VecH *v : {&sU, &sdU}) PetscCall(VecDuplicate(U0, v->out()));
   PetscInt lo, hi;
   PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
-  auto set_state = [&](const Eigen::VectorXd &z) -> PetscErrorCode {
+  const PetscInt nl = hi - lo; // states are kept by rows, on their rank: no gathers per step
+  auto           set_state = [&](const Eigen::VectorXd &z) -> PetscErrorCode {
     PetscScalar *u, *du;
     PetscFunctionBeginUser;
     PetscCall(VecGetArray(sU, &u));
     PetscCall(VecGetArray(sdU, &du));
-    for (PetscInt i = lo; i < hi; ++i) u[i - lo] = z[i], du[i - lo] = z[N_ + i];
+    for (PetscInt i = 0; i < nl; ++i) u[i] = z[i], du[i] = z[nl + i];
     PetscCall(VecRestoreArray(sdU, &du));
     PetscCall(VecRestoreArray(sU, &u));
+    PetscFunctionReturn(0);
+  };
+  auto get_state = [&](Eigen::Ref<Eigen::VectorXd> z) -> PetscErrorCode {
+    const PetscScalar *u, *du;
+    PetscFunctionBeginUser;
+    PetscCall(VecGetArrayRead(sU, &u));
+    PetscCall(VecGetArrayRead(sdU, &du));
+    for (PetscInt i = 0; i < nl; ++i) z[i] = PetscRealPart(u[i]), z[nl + i] = PetscRealPart(du[i]);
+    PetscCall(VecRestoreArrayRead(sdU, &du));
+    PetscCall(VecRestoreArrayRead(sU, &u));
     PetscFunctionReturn(0);
   };
   // Steps [j0, j1) from state z before step j0, warm start r0, statuses st before it; transitions appended to P.sig.
@@ -899,7 +910,7 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
                  const std::vector<int> &st) -> PetscErrorCode {
     PetscFunctionBeginUser;
     P.lo = j0;
-    P.Z.resize(2 * N_, j1 - j0 + 1), P.R.resize(3 * nc, j1 - j0 + 1);
+    P.Z.resize(2 * nl, j1 - j0 + 1), P.R.resize(3 * nc, j1 - j0 + 1);
     P.Z.col(0) = z, P.R.col(0) = r0, P.st_lo = st;
     PetscCall(set_state(z));
     Eigen::VectorXd r = r0;
@@ -908,8 +919,7 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
       PetscCall(ti_->Step(sU, sdU, r, &info));
       PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                  "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
-      PetscCall(Full(sU, P.Z.col(i - j0 + 1).head(N_)));
-      PetscCall(Full(sdU, P.Z.col(i - j0 + 1).tail(N_)));
+      PetscCall(get_state(P.Z.col(i - j0 + 1)));
       P.R.col(i - j0 + 1) = r;
       ti_->Contact().Status(r, cur);
       for (size_t c = 0; c < cur.size(); ++c)
@@ -921,11 +931,10 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
     PetscFunctionReturn(0);
   };
   auto exact = [&](Probe &P, PetscReal s, PetscInt j1) -> PetscErrorCode {
-    Eigen::VectorXd z(2 * N_);
+    Eigen::VectorXd z(2 * nl);
     PetscFunctionBeginUser;
     PetscCall(PhaseStart(U0, dU0, s, sU, sdU));
-    PetscCall(Full(sU, z.head(N_)));
-    PetscCall(Full(sdU, z.tail(N_)));
+    PetscCall(get_state(z));
     P.sig.clear();
     PetscCall(run(P, 0, j1, z, r_init_, st0));
     PetscFunctionReturn(0);
@@ -942,8 +951,8 @@ PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive
     if (same) {
       Probe &P = grid[0];
       P.lo     = 0;
-      P.Z.resize(2 * N_, steps + 1), P.R.resize(3 * nc, steps + 1);
-      P.Z.topRows(N_) = trU_, P.Z.bottomRows(N_) = trdU_;
+      P.Z.resize(2 * nl, steps + 1), P.R.resize(3 * nc, steps + 1);
+      P.Z.topRows(nl) = trU_.middleRows(lo, nl), P.Z.bottomRows(nl) = trdU_.middleRows(lo, nl);
       P.R.col(0)                = r_init_;
       if (nc) P.R.rightCols(steps) = trR_;
       P.st_lo = prev = st0;

@@ -393,7 +393,11 @@ TEST(Shooting, InterpolatedPhaseBisectionFindsTheExactPieces)
     double      V;
     FrictionLaw law;
   } cases[] = {{3.0, FrictionLaw::Planar}, {0.75, FrictionLaw::Planar}, {0.75, FrictionLaw::Rectilinear}};
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
   for (const Case &c : cases) {
+    // The rectilinear reference takes 163 flows with a gather per step: 1 rank only (12 s on 2).
+    if (size > 1 && c.law == FrictionLaw::Rectilinear) continue;
     ThreeDofParams p;
     p.V   = c.V;
     p.law = c.law;
