@@ -68,6 +68,13 @@ Usage:
 
   full study:  scripts/work_precision.py --squeal build/squeal --out-dir docs/img --csv docs/work_precision.csv
   smoke test:  add --quick (under a minute; reference shooting at 2000 steps, one timing pass)
+  cost only:   add --cost (a minute): shooting + Floquet as the scenes run it (1000 steps, eps 1e-5) against
+               the shortest transient whose period is within 1e-4 of shooting's at that length and the next
+               two (lengths --cost-lengths, 1000 steps per period); prints their period integrations
+               (shooting: Newton + Floquet, from squeal's summary line) and, side by side, the whole-run wall
+               time, the PETSc time (-log_view "Time (sec)": PetscInitialize to PetscFinalize, without process
+               and MPI start-up) and the analysis time (PETSc stages Energy + Shooting, resp. Transient), least
+               and median of --repeat interleaved runs (default 7), with the load average before and after.
 """
 
 import argparse
@@ -132,6 +139,7 @@ RE_SHOOT_FLOWS = re.compile(r"(\d+)\s+period integrations")
 RE_SHOOT_PER = re.compile(r"limit cycle period\s+([-+0-9.eE]+)\s*s")
 RE_SHOOT_P2P = re.compile(r"^\s*peak-to-peak \(m\):\s*(.+)$", re.M)
 RE_SHOOT_REGIME = re.compile(r"regime:\s*(.+)")
+RE_SHOOT_PARTS = re.compile(r"(\d+)\s+period integrations \(Newton (\d+), Floquet (\d+)")
 
 
 def fail(msg):
@@ -600,6 +608,85 @@ def fmt_num(x, spec):
     return "" if x is None else format(x, spec)
 
 
+def load_average():
+    try:
+        with open("/proc/loadavg") as fh:
+            return " ".join(fh.read().split()[:3])
+    except OSError:
+        return "?"
+
+
+def cost_study(squeal, scenes, repeat, keep, lengths, tol=1e-4):
+    """Shooting + Floquet against the shortest transient that settles to its period to `tol`."""
+    sys.path.insert(0, HERE)
+    from squeal_results import analysis_group  # noqa: E402
+
+    def stages(log, names):
+        lv = read_log_view(log)
+        return sum(lv[n] for n in names) if all(n in lv for n in names) else float("nan")
+
+    print(f"load average {load_average()}")
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="squeal_cost_") as tmp:
+        h5, log = os.path.join(tmp, "run.h5"), os.path.join(tmp, "log.txt")
+        snap = os.path.join(tmp, "squeal")  # a private copy: a rebuild during the study cannot mix two builds
+        shutil.copy2(squeal, snap)
+        squeal = snap
+        for case, _, clabel in CASES:
+            shoot = [squeal, "-scene", scenes[case], "-analyses", "shooting", "-shoot_floquet", "1", "-output", h5]
+            _, p = run_timed(shoot, h5)
+            with analysis_group(h5, "shooting", ("period",), "shooting") as (_, g):
+                T_s = float(g["period"][()])
+            m = RE_SHOOT_PARTS.search(p.stdout)
+            if not m:
+                fail(f"no 'period integrations (Newton n, Floquet m)' in the output of {' '.join(shoot)}")
+            parts = tuple(int(x) for x in m.groups())
+            # Transients of increasing length until the period stays within tol of shooting's for 3 lengths.
+            errs, best = [], None
+            for L in lengths:
+                cmd = transient_cmd(squeal, scenes[case], L, 1000, REF_TOL, keep, h5)
+                _, p = run_timed(cmd, h5)
+                with analysis_group(h5, "transient", (), "transient") as (_, g):
+                    T_t = float(g.attrs.get("period", float("nan")))
+                errs.append((L, abs(T_t - T_s) / T_s))
+                ok = [e <= tol for _, e in errs[-3:]]
+                if len(ok) == 3 and all(ok):
+                    best = errs[-3][0]
+                    break
+            print(f"\n== {clabel}: shooting T = {T_s:.10e} s; transient period error by length: "
+                  + ", ".join(f"{L:g} T: {e:.1e}" for L, e in errs))
+            if best is None:
+                warn(f"{case}: no transient length in {lengths[0]:g}..{lengths[-1]:g} periods settles to {tol:g}")
+                continue
+            jobs = {"shooting": (shoot, ("Energy", "Shooting")),
+                    "transient": (transient_cmd(squeal, scenes[case], best, 1000, REF_TOL, keep, h5), ("Transient",))}
+            t = {k: {"wall": [], "stage": [], "petsc": []} for k in jobs}
+            for _ in range(repeat):  # interleaved: a burst of load elsewhere hits both
+                for k, (cmd, names) in jobs.items():
+                    if os.path.exists(log):
+                        os.remove(log)
+                    w, _ = run_timed(cmd + ["-log_view", f":{log}"], h5)
+                    t[k]["wall"].append(w)
+                    t[k]["stage"].append(stages(log, names))
+                    t[k]["petsc"].append(read_log_view(log).get("total", float("nan")))
+            med = lambda xs: float(np.median(xs))  # noqa: E731
+            print(f"  {'':34} {'period integrations':>27} {'wall s (least / median)':>24} {'PETSc ms (least / median)':>26} "
+                  f"{'analysis ms (least / median)':>29}")
+            for k, label, integ in (("shooting", "shooting + Floquet (1000 steps)", f"{parts[0]} (Newton {parts[1]} + Floquet {parts[2]})"),
+                                    ("transient", f"transient, {best:g} periods (1000 steps)", f"{best:g}")):
+                w, a, pt = t[k]["wall"], t[k]["stage"], t[k]["petsc"]
+                print(f"  {label:34} {integ:>27} {min(w):15.3f} / {med(w):.3f} {1e3 * least(pt):15.1f} / {1e3 * med(pt):6.1f} "
+                      f"{1e3 * least(a):18.1f} / {1e3 * med(a):.1f}")
+            rw = min(t["transient"]["wall"]) / min(t["shooting"]["wall"])
+            ra = least(t["transient"]["stage"]) / least(t["shooting"]["stage"])
+            rp = least(t["transient"]["petsc"]) / least(t["shooting"]["petsc"])
+            print(f"  transient / shooting: wall {rw:.2f} (medians {med(t['transient']['wall']) / med(t['shooting']['wall']):.2f}), "
+                  f"PETSc (PetscInitialize to PetscFinalize) {rp:.2f}, analysis {ra:.2f}; {repeat} interleaved runs each")
+            out[case] = (parts, best, rw, ra)
+    print(f"\nload average {load_average()}")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -624,6 +711,10 @@ def main():
                     help="skip the rerun of the finest transient with -transient_keep_every 1")
     ap.add_argument("--no-equal-h", action="store_true",
                     help="skip the transient runs at exactly the step of the shooting runs")
+    ap.add_argument("--cost", action="store_true",
+                    help="only shooting + Floquet against the shortest transient that settles to its period (see above)")
+    ap.add_argument("--cost-lengths", default="10:60",
+                    help="--cost: transient lengths tried, in periods of the linear mode, FIRST:LAST by 1 (default 10:60)")
     args = ap.parse_args()
 
     squeal = os.path.abspath(args.squeal)
@@ -658,6 +749,14 @@ def main():
 
     def keep_for(s):
         return max(1, s // args.records_per_period)
+
+    if args.cost:
+        try:
+            a, b = (int(x) for x in args.cost_lengths.split(":"))
+        except ValueError:
+            fail(f"--cost-lengths '{args.cost_lengths}': expected FIRST:LAST (whole periods)")
+        cost_study(squeal, scenes, max(1, args.repeat or 7), keep_for(1000), [float(L) for L in range(a, b + 1)])
+        return
 
     print(f"squeal: {squeal} (the study runs a private copy of it)")
     print(f"transient: steps per period {', '.join(map(str, steps))} at {periods:g} periods"

@@ -28,6 +28,7 @@ namespace {
 struct Request {
   bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
   bool continuation = false;
+  bool energy_named = false; // the energy curve is asked for, not only shooting's start
 };
 
 PetscErrorCode ReadScene(int argc, char **argv)
@@ -54,7 +55,7 @@ PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
     if (a == "stability") req.stability = true;
     else if (a == "sweep") req.sweep = true;
     else if (a == "transient") req.transient = req.stability = true; // starts from a mode
-    else if (a == "energy") req.energy = req.stability = true;
+    else if (a == "energy") req.energy = req.energy_named = req.stability = true;
     else if (a == "shooting") req.shooting = req.energy = req.stability = true; // starts from the estimate
     else if (a == "continuation") req.continuation = req.shooting = req.energy = req.stability = true; // from the shooting solution
     else {
@@ -160,6 +161,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(transient.SetFromOptions());
   EnergyAnalysis energy(comm);
   PetscCall(energy.SetFromOptions());
+  energy.full_scan = req.energy_named;
   Shooting shooting(comm);
   PetscCall(shooting.SetFromOptions());
   Continuation continuation(comm);

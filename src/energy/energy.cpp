@@ -75,6 +75,10 @@ bool EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est) const
     est.P_reactions[k] = Reactions(q);
     if (crossing < 0 && k > 0 && est.P_reactions[k - 1] - est.P_damping[k - 1] > 0 && est.P_reactions[k] - est.P_damping[k] <= 0)
       crossing = k - 1;
+    if (crossing >= 0 && !full_scan) {
+      est.q.resize(k + 1), est.P_damping.resize(k + 1), est.P_reactions.resize(k + 1);
+      break;
+    }
   }
   // Already saturated at the first scan point (a fine structure of f below q_max / n_scan): the
   // balance lies in (0, q_1]; f > 0 near 0 for an unstable mode, so bisect there.

@@ -47,6 +47,9 @@ struct ShootingResult {
   // flow_evaluations counts partial flows pro rata (steps / N_s, rounded up). Of them: linear integrations of the step tangents (Jacobian products and exact
   // monodromies); set-ups of the step matrices (one per new period).
   PetscInt                             tangent_evaluations = 0, setups = 0;
+  // ... and how they split: Newton (residuals and Jacobians up to convergence) and Floquet
+  // (phase pieces, their tangents, the Jacobian at Z0), each rounded up.
+  PetscInt                             newton_evaluations = 0, floquet_evaluations = 0;
   // -shoot_pre_periods: periods of flow run before Newton, and the period-corrected T they ended with.
   PetscInt                             pre_periods = 0;
   PetscReal                            pre_period  = 0;
@@ -115,6 +118,9 @@ public:
 
   PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
+  // -shoot_floquet_bisect_interp: width of phase interval below which the bisection of the phase
+  // pieces starts its flows from interpolated states instead of from the start of the period.
+  PetscReal floquet_bisect_interp = 1.0 / 32;
   PetscBool floquet = PETSC_TRUE, floquet_exact = PETSC_TRUE;
   // -shoot_exact_jacobian: tangent products (else finite differences); -shoot_jacobian_dense_max:
   // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
