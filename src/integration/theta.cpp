@@ -304,9 +304,13 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   PetscCall(KSPReset(ksp_));
   PetscCall(KSPSetOperators(ksp_, A_, A_));
   PetscCall(SetUpBlockSolvers());
+  // CG starts each step's solve (S4) from the last one's v_f (and (S8) from the last correction):
+  // they change by O(h) from step to step. The set-up solves below start from zero.
+  if (cg_) PetscCall(KSPSetInitialGuessNonzero(ksp_, PETSC_TRUE));
   PetscCall(KSPSetUp(ksp_));
   PetscCall(VecDuplicate(m.F, rhs_.out()));
   PetscCall(VecDuplicate(m.F, vf_s_.out()));
+  PetscCall(VecSet(vf_s_, 0.0)); // the first CG guess
   PetscCall(VecDuplicate(m.F, tmp_.out()));
   PetscCall(AssembleH(m.contacts, m.F, H_.out()));
   PetscCall(MatCreateVecs(H_, loc_.out(), nullptr));
@@ -353,6 +357,7 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   Eigen::VectorXd wcol;
   for (PetscInt j = 0; j < 3 * nc_; ++j) {
     PetscCall(MatGetColumnVector(H_, col, j));
+    PetscCall(VecSet(ycol, 0.0));
     PetscCall(KSPSolve(ksp_, col, ycol));
     KSPConvergedReason reason;
     PetscCall(KSPGetConvergedReason(ksp_, &reason));
@@ -397,6 +402,7 @@ PetscErrorCode ThetaIntegrator::SetUpSparseDelassus()
   w_dropped_max_ = 0;
   for (PetscInt j = 0; j < 3 * nc_; ++j) {
     PetscCall(MatGetColumnVector(H_, hr_, j));
+    PetscCall(VecSet(yr_, 0.0));
     PetscCall(KSPSolve(ksp_, hr_, yr_));
     KSPConvergedReason reason;
     PetscCall(KSPGetConvergedReason(ksp_, &reason));
