@@ -304,8 +304,9 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   PetscCall(KSPReset(ksp_));
   PetscCall(KSPSetOperators(ksp_, A_, A_));
   PetscCall(SetUpBlockSolvers());
-  // CG starts each step's solve (S4) from the last one's v_f (and (S8) from the last correction):
-  // they change by O(h) from step to step. The set-up solves below start from zero.
+  // CG starts each step's solve (S4) from the last one's v_f, which changes by O(h) from step to
+  // step. (S8) and the set-up solves below start from zero: their right-hand sides jump (the last
+  // W column's solution as the first (S8) guess made CG diverge on the 31119-DOF pad).
   if (cg_) PetscCall(KSPSetInitialGuessNonzero(ksp_, PETSC_TRUE));
   PetscCall(KSPSetUp(ksp_));
   PetscCall(VecDuplicate(m.F, rhs_.out()));
@@ -548,6 +549,7 @@ PetscErrorCode ThetaIntegrator::StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, S
       PetscCall(VecRestoreArray(rloc_, &rl));
       if (sparse_w_) { // dU += A^-1 (H h r): one more solve with the factorised A instead of the N x 3 n_c Y
         PetscCall(MatMult(H_, rloc_, hr_));
+        if (cg_) PetscCall(VecSet(yr_, 0.0));
         PetscCall(KSPSolve(ksp_, hr_, yr_));
         if (cg_) PetscCall(CheckSolve());
         PetscCall(VecAXPY(dU, 1.0, yr_));
