@@ -135,14 +135,82 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                     &delassus_drop_, Range::NonNegative(), checks);
   PetscCall(PetscOptionsBool("-fixed_size", "Dense back end: run the step compiled for the model's sizes when available (false: run-time sizes)",
                              "ThetaIntegrator::SetUp", fixed_size_, &fixed_size_, nullptr));
+  const char *const psolvers[] = {"auto", "direct", "cg"};
+  PetscCall(PetscOptionsEList("-parallel_solver",
+                              "Sparse back end on several ranks: direct (MUMPS LU), cg (CG + block Jacobi, each rank's block by Cholesky), "
+                              "auto (cg)",
+                              "ThetaIntegrator::SetFromOptions", psolvers, 3, psolvers[psolver_], &psolver_, nullptr));
+  SquealOptionsReal("-cg_rtol", "Relative residual tolerance of -theta_parallel_solver cg", "ThetaIntegrator::SetFromOptions", &cg_rtol_,
+                    Range::Positive(), checks);
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
   PetscCall(SetDelassusMax(delassus_max_, delassus_drop_));
+  PetscCall(ConfigureSolver());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::SetParallelSolver(const char *name, PetscReal cg_rtol)
+{
+  PetscFunctionBeginUser;
+  const std::string n = name;
+  PetscCheck(n == "auto" || n == "direct" || n == "cg", comm_, kErrInput,
+             "option -%sparallel_solver %s: expected auto, direct or cg", prefix_.c_str(), name);
+  PetscCheck(cg_rtol > 0 && cg_rtol < 1, comm_, kErrInput, "option -%scg_rtol = %g: expected in (0, 1)", prefix_.c_str(), (double)cg_rtol);
+  psolver_ = n == "auto" ? 0 : n == "direct" ? 1 : 2;
+  cg_rtol_ = cg_rtol;
+  if (ksp_) PetscCall(ConfigureSolver());
+  PetscFunctionReturn(0);
+}
+
+// The KSP of A (S1), rebuilt from the options database and the settings above.
+PetscErrorCode ThetaIntegrator::ConfigureSolver()
+{
+  PetscFunctionBeginUser;
+  ksp_.reset();
   PetscCall(KSPCreate(comm_, ksp_.out()));
   PetscCall(KSPSetOptionsPrefix(ksp_, prefix_.c_str()));
   PetscCall(UseDirectSolver(ksp_, Factorisation::SPD)); // A = M + h theta C + h^2 theta^2 K
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  cg_ = size > 1 && psolver_ != 1;
+  if (cg_) {
+    // MUMPS's distributed solve costs 10-35 ms on a 30 000-DOF chain (its per-front overhead on a
+    // thin elimination tree, plus messages) against 0.35 ms for one rank's Cholesky solve. A is SPD
+    // and, at transient step sizes, dominated by M: block Jacobi leaves out only the coupling
+    // across the ranks' cut, so CG needs few iterations, each one local solve per rank.
+    PC pc;
+    PetscCall(KSPSetType(ksp_, KSPCG));
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PCSetType(pc, PCBJACOBI));
+    PetscCall(KSPSetTolerances(ksp_, cg_rtol_, 1e-300, PETSC_DEFAULT, 1000));
+  }
   PetscCall(KSPSetFromOptions(ksp_));
+  PetscFunctionReturn(0);
+}
+
+// With block Jacobi, each rank's block is factorised by PETSc's Cholesky (the default sub-solver
+// is ILU(0), an approximation); -theta_sub_ksp_* / -theta_sub_pc_* still override it.
+PetscErrorCode ThetaIntegrator::SetUpBlockSolvers()
+{
+  PC        pc;
+  PetscBool isbj;
+  PetscFunctionBeginUser;
+  PetscCall(KSPGetPC(ksp_, &pc));
+  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCBJACOBI, &isbj));
+  if (!isbj) PetscFunctionReturn(0);
+  PetscCall(KSPSetUp(ksp_));
+  KSP     *sub;
+  PetscInt nlocal;
+  PetscCall(PCBJacobiGetSubKSP(pc, &nlocal, nullptr, &sub));
+  for (PetscInt i = 0; i < nlocal; ++i) {
+    PC spc;
+    PetscCall(KSPSetType(sub[i], KSPPREONLY));
+    PetscCall(KSPGetPC(sub[i], &spc));
+    PetscCall(PCSetType(spc, PCCHOLESKY));
+    PetscCall(PCFactorSetMatSolverType(spc, MATSOLVERPETSC));
+    PetscCall(KSPSetFromOptions(sub[i]));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -235,9 +303,15 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   PetscCall(MatAXPY(B_, -h * h * t * (1 - t), m.K, DIFFERENT_NONZERO_PATTERN));
   PetscCall(KSPReset(ksp_));
   PetscCall(KSPSetOperators(ksp_, A_, A_));
+  PetscCall(SetUpBlockSolvers());
+  // CG starts each step's solve (S4) from the last one's v_f, which changes by O(h) from step to
+  // step. (S8) and the set-up solves below start from zero: their right-hand sides jump (the last
+  // W column's solution as the first (S8) guess made CG diverge on the 31119-DOF pad).
+  if (cg_) PetscCall(KSPSetInitialGuessNonzero(ksp_, PETSC_TRUE));
   PetscCall(KSPSetUp(ksp_));
   PetscCall(VecDuplicate(m.F, rhs_.out()));
   PetscCall(VecDuplicate(m.F, vf_s_.out()));
+  PetscCall(VecSet(vf_s_, 0.0)); // the first CG guess
   PetscCall(VecDuplicate(m.F, tmp_.out()));
   PetscCall(AssembleH(m.contacts, m.F, H_.out()));
   PetscCall(MatCreateVecs(H_, loc_.out(), nullptr));
@@ -284,6 +358,7 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   Eigen::VectorXd wcol;
   for (PetscInt j = 0; j < 3 * nc_; ++j) {
     PetscCall(MatGetColumnVector(H_, col, j));
+    PetscCall(VecSet(ycol, 0.0));
     PetscCall(KSPSolve(ksp_, col, ycol));
     KSPConvergedReason reason;
     PetscCall(KSPGetConvergedReason(ksp_, &reason));
@@ -298,6 +373,18 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
   }
   PetscCall(MatAssemblyBegin(Yd_, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(Yd_, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+// An iterative solve that stops short is an error, not a silently wrong step.
+PetscErrorCode ThetaIntegrator::CheckSolve()
+{
+  KSPConvergedReason reason;
+  PetscFunctionBeginUser;
+  PetscCall(KSPGetConvergedReason(ksp_, &reason));
+  PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED,
+             "theta-method: CG solve with A = M + h theta C + h^2 theta^2 K failed (%s): raise -%scg_rtol or use -%sparallel_solver direct",
+             KSPConvergedReasons[reason], prefix_.c_str(), prefix_.c_str());
   PetscFunctionReturn(0);
 }
 
@@ -316,6 +403,7 @@ PetscErrorCode ThetaIntegrator::SetUpSparseDelassus()
   w_dropped_max_ = 0;
   for (PetscInt j = 0; j < 3 * nc_; ++j) {
     PetscCall(MatGetColumnVector(H_, hr_, j));
+    PetscCall(VecSet(yr_, 0.0));
     PetscCall(KSPSolve(ksp_, hr_, yr_));
     KSPConvergedReason reason;
     PetscCall(KSPGetConvergedReason(ksp_, &reason));
@@ -440,6 +528,7 @@ PetscErrorCode ThetaIntegrator::StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, S
     PetscCall(MatMult(model_->K, U, tmp_));
     PetscCall(VecAXPBYPCZ(rhs_, -h, h, 1.0, tmp_, model_->F));
     PetscCall(KSPSolve(ksp_, rhs_, vf_s_));
+    if (cg_) PetscCall(CheckSolve());
     // (S9) needs dU^i after dU is overwritten: U += h (1 - theta) dU^i now, h theta dU^{i+1} later.
     if (nc_ > 0) {
       PetscCall(ToLocal(vf_s_, wf_));                // (S5)
@@ -460,7 +549,9 @@ PetscErrorCode ThetaIntegrator::StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, S
       PetscCall(VecRestoreArray(rloc_, &rl));
       if (sparse_w_) { // dU += A^-1 (H h r): one more solve with the factorised A instead of the N x 3 n_c Y
         PetscCall(MatMult(H_, rloc_, hr_));
+        if (cg_) PetscCall(VecSet(yr_, 0.0));
         PetscCall(KSPSolve(ksp_, hr_, yr_));
+        if (cg_) PetscCall(CheckSolve());
         PetscCall(VecAXPY(dU, 1.0, yr_));
       } else PetscCall(MatMultAdd(Yd_, rloc_, dU, dU));
     }

@@ -29,9 +29,10 @@ struct Stepper {
 // dense_max, delassus_max, drop: which path; all start from the equilibrium with the same
 // velocity pattern, large enough to lift points off.
 void Start(Stepper &s, const Model &model, const SlidingEquilibrium &eq, PetscInt dense_max, PetscInt delassus_max, PetscReal drop,
-           PetscReal h)
+           PetscReal h, const char *parallel_solver = "auto")
 {
   PetscCallAbort(PETSC_COMM_WORLD, s.ti.SetFromOptions());
+  PetscCallAbort(PETSC_COMM_WORLD, s.ti.SetParallelSolver(parallel_solver, 1e-13));
   PetscCallAbort(PETSC_COMM_WORLD, s.ti.SetDenseMax(dense_max));
   PetscCallAbort(PETSC_COMM_WORLD, s.ti.SetDelassusMax(delassus_max, drop));
   PetscCallAbort(PETSC_COMM_WORLD, s.ti.SetUp(model, h));
@@ -82,11 +83,14 @@ TEST(ContactsAtScale, SparseDelassusStepMatchesDenseWAndDenseBackEnd)
   const PetscReal h = 5e-5; // 160 steps: 8 ms, about one period of a cell
   // Reference: dense back end (Eigen LLT, dense W); then the sparse back end with the dense W and
   // Y, and with the sparse W (default drop tolerance, and exact non-zeros only).
-  Stepper ref, ysp, wsp, wex;
+  // On several ranks the sparse back end solves with CG + block Jacobi by default (auto); the
+  // last stepper checks MUMPS's distributed LU (direct) too.
+  Stepper ref, ysp, wsp, wex, wdir;
   Start(ref, model, eq, 100000, 100000, 1e-15, h);
   Start(ysp, model, eq, 0, 100000, 1e-15, h);
   Start(wsp, model, eq, 0, 0, 1e-15, h);
   Start(wex, model, eq, 0, 0, 0.0, h);
+  Start(wdir, model, eq, 0, 0, 1e-15, h, "direct");
   ASSERT_TRUE(ref.ti.Dense());
   ASSERT_FALSE(ysp.ti.Dense());
   ASSERT_FALSE(ysp.ti.SparseDelassus());
@@ -101,10 +105,10 @@ TEST(ContactsAtScale, SparseDelassusStepMatchesDenseWAndDenseBackEnd)
   std::vector<int> st_prev, st;
   ref.ti.Contact().Status(ref.r, st_prev);
   PetscInt opened = 0, closed = 0, slips = 0, sticks = 0;
-  double   worst[3] = {0, 0, 0};
+  double   worst[4] = {0, 0, 0, 0};
   StepInfo info;
   for (int i = 0; i < 160; ++i) {
-    for (Stepper *s : {&ref, &ysp, &wsp, &wex}) {
+    for (Stepper *s : {&ref, &ysp, &wsp, &wex, &wdir}) {
       ASSERT_EQ(s->ti.Step(s->U, s->dU, s->r, &info), 0);
       ASSERT_TRUE(info.contact.converged) << "step " << i;
     }
@@ -120,7 +124,7 @@ TEST(ContactsAtScale, SparseDelassusStepMatchesDenseWAndDenseBackEnd)
     const Eigen::VectorXd U0 = test::ToDense(ref.U), dU0 = test::ToDense(ref.dU);
     const double          rs = ref.r.cwiseAbs().maxCoeff();
     int                   k  = 0;
-    for (Stepper *s : {&ysp, &wsp, &wex}) {
+    for (Stepper *s : {&ysp, &wsp, &wex, &wdir}) {
       const double eu = (test::ToDense(s->U) - U0).cwiseAbs().maxCoeff() / U0.cwiseAbs().maxCoeff();
       const double ev = (test::ToDense(s->dU) - dU0).cwiseAbs().maxCoeff() / dU0.cwiseAbs().maxCoeff();
       const double er = (s->r - ref.r).cwiseAbs().maxCoeff() / rs;
@@ -136,8 +140,10 @@ TEST(ContactsAtScale, SparseDelassusStepMatchesDenseWAndDenseBackEnd)
   EXPECT_LT(worst[0], 1e-10) << "sparse back end, dense W and Y against the dense back end";
   EXPECT_LT(worst[1], 1e-10) << "sparse W (drop 1e-15), (S8) by a solve, against the dense back end";
   EXPECT_LT(worst[2], 1e-10) << "sparse W (exact non-zeros), (S8) by a solve, against the dense back end";
+  EXPECT_LT(worst[3], 1e-10) << "sparse W, -theta_parallel_solver direct (MUMPS on several ranks), against the dense back end";
   PetscCallAbort(PETSC_COMM_WORLD, PetscPrintf(PETSC_COMM_WORLD,
                                                "ContactsAtScale: %d openings, %d closings, %d stick and %d slip point-steps; "
-                                               "max relative differences %.2e %.2e %.2e\n",
-                                               (int)opened, (int)closed, (int)sticks, (int)slips, worst[0], worst[1], worst[2]));
+                                               "max relative differences %.2e %.2e %.2e %.2e\n",
+                                               (int)opened, (int)closed, (int)sticks, (int)slips, worst[0], worst[1], worst[2],
+                                               worst[3]));
 }

@@ -21,7 +21,9 @@
 // every rank steps the gathered state, so a small model costs the same on any rank count;
 // A^-1 B, A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written
 // loop would do) and "sparse" (distributed AIJ, A factorised once by KSP/PC: PETSc's Cholesky
-// on one rank, MUMPS LU on several; options -theta_ksp_*, -theta_pc_*). The dense matrices are N x N, so
+// on one rank; on several, -theta_parallel_solver: MUMPS LU (direct) or CG preconditioned by
+// block Jacobi with each rank's diagonal block of A factorised by PETSc's Cholesky (cg, to
+// -theta_cg_rtol); options -theta_ksp_*, -theta_pc_*). The dense matrices are N x N, so
 // the step becomes memory-bound past a few hundred DOFs: measured crossover between N = 90 and
 // N = 300 (benchmarks/bench_step.cpp). Nothing is allocated per step or per fixed-point pass.
 // The dense step runs in a DenseStepKernel chosen in SetUp (integration/step_kernel.h): compiled for
@@ -57,7 +59,10 @@ public:
   // < 0: by cost, see above), and the relative drop tolerance of the sparse W (0: exact non-zeros only).
   PetscErrorCode SetDelassusMax(PetscInt n, PetscReal drop);
   // -theta_theta, -theta_fp_tol, -theta_fp_max_it, -theta_rho_scale, -theta_dense_max,
-  // -theta_delassus_max, -theta_delassus_drop, -theta_ksp_*.
+  // Sparse back end on several ranks: "direct" (MUMPS LU), "cg" (CG + block Jacobi, each rank's
+  // block by Cholesky, to relative residual cg_rtol) or "auto" (cg); one rank always factorises A.
+  PetscErrorCode SetParallelSolver(const char *name, PetscReal cg_rtol);
+  // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*.
   PetscErrorCode SetFromOptions();
   // (S1)-(S3) for step size h; call again whenever h changes.
   PetscErrorCode SetUp(const Model &model, PetscReal h);
@@ -150,6 +155,9 @@ private:
 
   // sparse back end
   KSPH       ksp_;
+  PetscInt   psolver_ = 0;                    // -theta_parallel_solver: 0 auto, 1 direct, 2 cg
+  bool       cg_      = false;                // CG + block Jacobi (each rank's block by Cholesky) in use
+  PetscReal  cg_rtol_ = 1e-13;                // -theta_cg_rtol
   MatH       A_, B_, H_, Yd_;                 // Yd_ only with the dense W (3 n_c <= delassus_max_)
   PetscInt   delassus_max_ = -1;              // < 0: automatic (SetUpSparse)
   PetscReal  delassus_drop_ = 1e-15, w_dropped_max_ = 0; // largest |dropped W_ij| / max_i |W_ij|
@@ -158,6 +166,9 @@ private:
   Eigen::SparseMatrix<PetscReal> Ws_;
   VecH       hr_, yr_;                        // H (h r) and A^-1 H (h r), sparse W only
   PetscErrorCode SetUpSparseDelassus();
+  PetscErrorCode SetUpBlockSolvers(); // sub-solvers of block Jacobi (-theta_parallel_solver cg)
+  PetscErrorCode CheckSolve();
+  PetscErrorCode ConfigureSolver();
   VecH       rhs_, vf_s_, tmp_, loc_, rloc_, loc_all_;
   VecScatter to_all_ = nullptr;
 
