@@ -135,11 +135,12 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                     &delassus_drop_, Range::NonNegative(), checks);
   PetscCall(PetscOptionsBool("-fixed_size", "Dense back end: run the step compiled for the model's sizes when available (false: run-time sizes)",
                              "ThetaIntegrator::SetUp", fixed_size_, &fixed_size_, nullptr));
-  const char *const psolvers[] = {"auto", "direct", "cg"};
+  const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
   PetscCall(PetscOptionsEList("-parallel_solver",
-                              "Sparse back end on several ranks: direct (MUMPS LU), cg (CG + block Jacobi, each rank's block by Cholesky), "
-                              "auto (cg)",
-                              "ThetaIntegrator::SetFromOptions", psolvers, 3, psolvers[psolver_], &psolver_, nullptr));
+                              "Sparse back end on several ranks: direct (MUMPS LU, distributed), cg (CG + block Jacobi, each rank's "
+                              "block by Cholesky), redundant (every rank factorises the whole A by Cholesky: never slower than one "
+                              "rank, up to a gather per solve), auto (redundant)",
+                              "ThetaIntegrator::SetFromOptions", psolvers, 4, psolvers[psolver_], &psolver_, nullptr));
   SquealOptionsReal("-cg_rtol", "Relative residual tolerance of -theta_parallel_solver cg", "ThetaIntegrator::SetFromOptions", &cg_rtol_,
                     Range::Positive(), checks);
   PetscOptionsEnd();
@@ -154,10 +155,10 @@ PetscErrorCode ThetaIntegrator::SetParallelSolver(const char *name, PetscReal cg
 {
   PetscFunctionBeginUser;
   const std::string n = name;
-  PetscCheck(n == "auto" || n == "direct" || n == "cg", comm_, kErrInput,
-             "option -%sparallel_solver %s: expected auto, direct or cg", prefix_.c_str(), name);
+  PetscCheck(n == "auto" || n == "direct" || n == "cg" || n == "redundant", comm_, kErrInput,
+             "option -%sparallel_solver %s: expected auto, direct, cg or redundant", prefix_.c_str(), name);
   PetscCheck(cg_rtol > 0 && cg_rtol < 1, comm_, kErrInput, "option -%scg_rtol = %g: expected in (0, 1)", prefix_.c_str(), (double)cg_rtol);
-  psolver_ = n == "auto" ? 0 : n == "direct" ? 1 : 2;
+  psolver_ = n == "auto" ? 0 : n == "direct" ? 1 : n == "cg" ? 2 : 3;
   cg_rtol_ = cg_rtol;
   if (ksp_) PetscCall(ConfigureSolver());
   PetscFunctionReturn(0);
@@ -173,7 +174,25 @@ PetscErrorCode ThetaIntegrator::ConfigureSolver()
   PetscCall(UseDirectSolver(ksp_, Factorisation::SPD)); // A = M + h theta C + h^2 theta^2 K
   PetscMPIInt size;
   PetscCallMPI(MPI_Comm_size(comm_, &size));
-  cg_ = size > 1 && psolver_ != 1;
+  // A single model's step solves do not split well over ranks (README "MPI speed-ups"): MUMPS's
+  // distributed solve made the 30 000-DOF chain's transient 33x slower on 2 ranks, CG + block
+  // Jacobi needed 3.8 block solves per solve on the 31119-DOF pad. auto therefore keeps one rank's
+  // work per solve: every rank holds the whole A (PCREDUNDANT) factorised by PETSc's Cholesky, as
+  // on one rank, and a solve costs that plus the gather of its right-hand side. direct (MUMPS) is
+  // for models whose factor does not fit on one rank.
+  if (size > 1 && (psolver_ == 0 || psolver_ == 3)) {
+    PC  pc, ipc;
+    KSP inner;
+    PetscCall(KSPSetType(ksp_, KSPPREONLY));
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PCSetType(pc, PCREDUNDANT));
+    PetscCall(PCRedundantGetKSP(pc, &inner));
+    PetscCall(KSPSetType(inner, KSPPREONLY));
+    PetscCall(KSPGetPC(inner, &ipc));
+    PetscCall(PCSetType(ipc, PCCHOLESKY));
+    PetscCall(PCFactorSetMatSolverType(ipc, MATSOLVERPETSC));
+  }
+  cg_ = size > 1 && psolver_ == 2;
   if (cg_) {
     // MUMPS's distributed solve costs 10-35 ms on a 30 000-DOF chain (its per-front overhead on a
     // thin elimination tree, plus messages) against 0.35 ms for one rank's Cholesky solve. A is SPD

@@ -167,8 +167,12 @@ PetscErrorCode Model::Export(const char *dir, const char *format) const
   const std::string d   = std::string(dir) + "/";
   const std::string ext = std::string(".") + (format ? format : "bin");
   PetscViewer       v;
+  PetscMPIInt       rank;
   PetscFunctionBeginUser;
-  PetscCall(PetscMkdir(dir));
+  // One rank creates the folder: on every rank, the second mkdir of a race fails ("Could not create dir").
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  if (rank == 0) PetscCall(PetscMkdir(dir));
+  PetscCallMPI(MPI_Barrier(comm_));
   PetscCall(io::MatSaveToFile(M, (d + "M" + ext).c_str()));
   PetscCall(io::MatSaveToFile(K, (d + "K" + ext).c_str()));
   if (C) PetscCall(io::MatSaveToFile(C, (d + "C" + ext).c_str()));

@@ -83,13 +83,14 @@ TEST(ContactsAtScale, SparseDelassusStepMatchesDenseWAndDenseBackEnd)
   const PetscReal h = 5e-5; // 160 steps: 8 ms, about one period of a cell
   // Reference: dense back end (Eigen LLT, dense W); then the sparse back end with the dense W and
   // Y, and with the sparse W (default drop tolerance, and exact non-zeros only).
-  // On several ranks the sparse back end solves with CG + block Jacobi by default (auto); the
-  // last stepper checks MUMPS's distributed LU (direct) too.
+  // On several ranks the sparse back end solves redundantly by default (auto: every rank's own
+  // Cholesky of the whole A); the exact-non-zero stepper uses CG + block Jacobi (cg) and the last
+  // one MUMPS's distributed LU (direct), so that all three parallel solvers are checked.
   Stepper ref, ysp, wsp, wex, wdir;
   Start(ref, model, eq, 100000, 100000, 1e-15, h);
   Start(ysp, model, eq, 0, 100000, 1e-15, h);
   Start(wsp, model, eq, 0, 0, 1e-15, h);
-  Start(wex, model, eq, 0, 0, 0.0, h);
+  Start(wex, model, eq, 0, 0, 0.0, h, "cg");
   Start(wdir, model, eq, 0, 0, 1e-15, h, "direct");
   ASSERT_TRUE(ref.ti.Dense());
   ASSERT_FALSE(ysp.ti.Dense());
@@ -139,7 +140,7 @@ TEST(ContactsAtScale, SparseDelassusStepMatchesDenseWAndDenseBackEnd)
   EXPECT_GT(sticks, 0);
   EXPECT_LT(worst[0], 1e-10) << "sparse back end, dense W and Y against the dense back end";
   EXPECT_LT(worst[1], 1e-10) << "sparse W (drop 1e-15), (S8) by a solve, against the dense back end";
-  EXPECT_LT(worst[2], 1e-10) << "sparse W (exact non-zeros), (S8) by a solve, against the dense back end";
+  EXPECT_LT(worst[2], 1e-10) << "sparse W (exact non-zeros), (S8) by a solve, -theta_parallel_solver cg, against the dense back end";
   EXPECT_LT(worst[3], 1e-10) << "sparse W, -theta_parallel_solver direct (MUMPS on several ranks), against the dense back end";
   PetscCallAbort(PETSC_COMM_WORLD, PetscPrintf(PETSC_COMM_WORLD,
                                                "ContactsAtScale: %d openings, %d closings, %d stick and %d slip point-steps; "

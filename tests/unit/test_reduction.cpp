@@ -8,7 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <filesystem>
 #include <complex>
 #include <string>
 
@@ -271,7 +274,10 @@ TEST(Reduction, ExportedReducedModelReadsBackIdentically)
   Model     full, red, back;
   ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
   ASSERT_EQ(Reduce(full, 30000, red), 0);
-  const std::string dir = "test_reduction_export";
+  // One folder per run: ctest runs this suite on 1 and 2 ranks at the same time in one directory.
+  int pid = (int)getpid();
+  MPI_Bcast(&pid, 1, MPI_INT, 0, PETSC_COMM_WORLD);
+  const std::string dir = "test_reduction_export_" + std::to_string(pid);
   ASSERT_EQ(red.Export(dir.c_str(), "bin"), 0);
   FileModelSpec s;
   s.mass = dir + "/M.bin", s.stiffness = dir + "/K.bin", s.damping = dir + "/C.bin", s.load = dir + "/F.bin";
@@ -293,6 +299,10 @@ TEST(Reduction, ExportedReducedModelReadsBackIdentically)
   const auto a = Unstable(red), b = Unstable(back);
   ASSERT_FALSE(a.empty());
   EXPECT_LT(MaxRelError(a, b), 1e-10);
+  MPI_Barrier(PETSC_COMM_WORLD);
+  int rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0) std::filesystem::remove_all(dir);
 }
 
 TEST(Reduction, CutOffBelowTheBandIsRefused)

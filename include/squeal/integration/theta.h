@@ -60,7 +60,8 @@ public:
   PetscErrorCode SetDelassusMax(PetscInt n, PetscReal drop);
   // -theta_theta, -theta_fp_tol, -theta_fp_max_it, -theta_rho_scale, -theta_dense_max,
   // Sparse back end on several ranks: "direct" (MUMPS LU), "cg" (CG + block Jacobi, each rank's
-  // block by Cholesky, to relative residual cg_rtol) or "auto" (cg); one rank always factorises A.
+  // block by Cholesky, to relative residual cg_rtol), "redundant" (every rank factorises the whole A)
+  // or "auto" (redundant); one rank always factorises A.
   PetscErrorCode SetParallelSolver(const char *name, PetscReal cg_rtol);
   // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*.
   PetscErrorCode SetFromOptions();
@@ -155,7 +156,7 @@ private:
 
   // sparse back end
   KSPH       ksp_;
-  PetscInt   psolver_ = 0;                    // -theta_parallel_solver: 0 auto, 1 direct, 2 cg
+  PetscInt   psolver_ = 0;                    // -theta_parallel_solver: 0 auto, 1 direct, 2 cg, 3 redundant
   bool       cg_      = false;                // CG + block Jacobi (each rank's block by Cholesky) in use
   PetscReal  cg_rtol_ = 1e-13;                // -theta_cg_rtol
   MatH       A_, B_, H_, Yd_;                 // Yd_ only with the dense W (3 n_c <= delassus_max_)
