@@ -379,10 +379,7 @@ PetscErrorCode ThetaIntegrator::SetUpSparse()
     PetscCall(MatGetColumnVector(H_, col, j));
     PetscCall(VecSet(ycol, 0.0));
     PetscCall(KSPSolve(ksp_, col, ycol));
-    KSPConvergedReason reason;
-    PetscCall(KSPGetConvergedReason(ksp_, &reason));
-    PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED, "theta-method: solve with A = M + h theta C + h^2 theta^2 K failed (%s)",
-               KSPConvergedReasons[reason]);
+    PetscCall(CheckSolve());
     const PetscScalar *y;
     PetscCall(VecGetArrayRead(ycol, &y));
     for (PetscInt i = rstart; i < rend; ++i) PetscCall(MatSetValue(Yd_, i, j, y[i - rstart], INSERT_VALUES));
@@ -401,9 +398,11 @@ PetscErrorCode ThetaIntegrator::CheckSolve()
   KSPConvergedReason reason;
   PetscFunctionBeginUser;
   PetscCall(KSPGetConvergedReason(ksp_, &reason));
-  PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED,
+  PetscCheck(reason >= 0 || !cg_, comm_, PETSC_ERR_NOT_CONVERGED,
              "theta-method: CG solve with A = M + h theta C + h^2 theta^2 K failed (%s): raise -%scg_rtol or use -%sparallel_solver direct",
              KSPConvergedReasons[reason], prefix_.c_str(), prefix_.c_str());
+  PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED, "theta-method: solve with A = M + h theta C + h^2 theta^2 K failed (%s)",
+             KSPConvergedReasons[reason]);
   PetscFunctionReturn(0);
 }
 
@@ -424,10 +423,7 @@ PetscErrorCode ThetaIntegrator::SetUpSparseDelassus()
     PetscCall(MatGetColumnVector(H_, hr_, j));
     PetscCall(VecSet(yr_, 0.0));
     PetscCall(KSPSolve(ksp_, hr_, yr_));
-    KSPConvergedReason reason;
-    PetscCall(KSPGetConvergedReason(ksp_, &reason));
-    PetscCheck(reason >= 0, comm_, PETSC_ERR_NOT_CONVERGED, "theta-method: solve with A = M + h theta C + h^2 theta^2 K failed (%s)",
-               KSPConvergedReasons[reason]);
+    PetscCall(CheckSolve());
     PetscCall(ToLocal(yr_, wcol));
     const PetscReal big = wcol.cwiseAbs().maxCoeff(), cut = delassus_drop_ * big;
     for (PetscInt i = 0; i < 3 * nc_; ++i) {
