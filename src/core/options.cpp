@@ -69,6 +69,11 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
     ++count;
   }
   PetscCall(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  if (!skip_views && count > 0) {
+    PetscCall(PetscFPrintf(comm, PETSC_STDERR, "warning: option%s %s%s never used (mistyped, or for an analysis this run did not do; see -help)\n",
+                           count > 1 ? "s" : "", unused.c_str(), count > 5 ? ", ..." : ""));
+    PetscFunctionReturn(0);
+  }
   PetscCheck(count == 0, comm, kErrInput, "unknown option%s %s%s (mistyped? see -help)", count > 1 ? "s" : "",
              unused.c_str(), count > 5 ? ", ..." : "");
   PetscFunctionReturn(0);

@@ -27,9 +27,11 @@ std::string OptionName(const char *prefix, const char *name);
 // Fails with a one-line message naming the option if v is not finite or outside r.
 PetscErrorCode CheckReal(MPI_Comm comm, const char *prefix, const char *name, PetscReal v, const Range &r);
 
-// Fails naming the options nobody read (mistyped or unknown), listing up to five. Call after every
+// Names the options nobody read (mistyped or unknown), listing up to five. Call after every
 // component has read its options; with skip_views, options ending in "_view" (which PETSc reads
-// only after a solve) are left for a final call.
+// only after a solve) are left for a final call, and the check fails. Without it (the final call,
+// after every result is written) it warns on stderr instead: a viewer or monitor of an analysis
+// the run did not do must not turn a complete run into a failed one.
 PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views);
 
 // Parses a YAML file (rank 0) and fails naming the file, line and column of a syntax error;
