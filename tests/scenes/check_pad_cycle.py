@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Limit cycle of a reduced FE pad: shooting (started from the energy estimate) against a long
 transient of the same reduced model, both in one squeal run (the command after --, analyses
-stability, energy, shooting, transient). The transient starts from a small multiple of the
+stability, energy, shooting, transient), or from two finished runs: --shooting FILE for the
+shooting run's results and --output for the transient's, no command (the 31119-DOF pad, whose
+transient takes an hour: README "Limit cycles of the reduced pads"). The transient starts from a small multiple of the
 unstable mode, not from the shooting solution, so the two are independent routes to the cycle.
 Checks:
   - shooting converged in at most --max-iterations Newton iterations from the energy estimate;
@@ -52,7 +54,8 @@ def crossings(t, y, v, level, hyst):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--output", required=True)
+    ap.add_argument("--output", required=True, help="results file with the transient (and the shooting)")
+    ap.add_argument("--shooting", help="results file with the shooting solution (default: --output)")
     ap.add_argument("--max-iterations", type=int, default=8)
     ap.add_argument("--max-return", type=float, default=1e-2)
     ap.add_argument("--period-tol", type=float, default=1e-4)
@@ -61,21 +64,23 @@ def main():
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    sys.stdout.write(r.stdout)
-    sys.stderr.write(r.stderr)
-    if r.returncode != 0:
-        sys.exit(f"check_pad_cycle: squeal exited with {r.returncode}")
+    if cmd:
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        sys.stdout.write(r.stdout)
+        sys.stderr.write(r.stderr)
+        if r.returncode != 0:
+            sys.exit(f"check_pad_cycle: squeal exited with {r.returncode}")
     fails = []
-    with h5py.File(a.output, "r") as f:
-        s = f["shooting"]
+    with h5py.File(a.shooting or a.output, "r") as fs:
+        s = fs["shooting"]
         converged = int(s.attrs["converged"])
         its = int(s["iterations"][()])
         T_s = float(s["period"][()])
         Uo = s["orbit/U"][()]
         L = s["floquet"][()]
         trivial = int(s.attrs["trivial_multiplier_index"])
-        q0 = float(f["energy"].attrs["q0"])
+        q0 = float(fs["energy"].attrs["q0"])
+    with h5py.File(a.output, "r") as f:
         t = f["transient/t"][()]
         U = f["transient/U"][()]
         V = f["transient/V"][()]
