@@ -307,7 +307,7 @@ PetscErrorCode Shooting::SetFromOptions()
                              "Shooting", ew, &ew, nullptr));
   SquealOptionsReal("-pre_tol",
                     "Stop the -shoot_pre_periods early once the period-corrected return distance |Z(T) - Z0 + dt G| / |Z(T)| is "
-                    "below this (0: run them all; 0.2: a few periods, enough for Newton on the FE pads)",
+                    "below this (0: run them all)",
                     "Shooting", &pre_tol, Range::NonNegative(), checks);
   PetscCall(PetscOptionsReal("-tangent_cache_mb",
                              "Memory for the per-step factors of the contact tangent system along the flow (reused by every "
@@ -1561,9 +1561,10 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
   PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s",
              res.reason.c_str(), (double)res.residual, (double)res.period,
-             pre_periods == 0 && res.reason.find("Krylov") == std::string::npos
-               ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
-               : "");
+             res.reason.find("Krylov") != std::string::npos ? ""
+             : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
+             : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
+                                       : "; if the cycle attracts, start closer: more -shoot_pre_periods");
   PetscFunctionReturn(0);
 }
 
