@@ -228,11 +228,13 @@ PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Ma
   std::vector<PetscScalar> sbuf((size_t)soff), rbuf((size_t)roff);
   {
     const PetscScalar *x;
+    PetscInt           ldx;
+    PetscCall(MatDenseGetLDA(X, &ldx));
     PetscCall(MatDenseGetArrayRead(X, &x));
     for (PetscMPIInt q = 0; q < size; ++q) {
       const PetscInt m = rows[q + 1] - rows[q];
       for (PetscInt j = 0; j < k; ++j)
-        std::copy(x + rows[q] + (size_t)j * nI, x + rows[q] + m + (size_t)j * nI, sbuf.begin() + sdsp[q] + (size_t)j * m);
+        std::copy(x + rows[q] + (size_t)j * ldx, x + rows[q] + m + (size_t)j * ldx, sbuf.begin() + sdsp[q] + (size_t)j * m);
     }
     PetscCall(MatDenseRestoreArrayRead(X, &x));
   }
