@@ -24,8 +24,9 @@
 // On several ranks (-reduce_redundant, default): every rank factorises the whole K_II on its own
 // (PCREDUNDANT around the same Cholesky) and solves its share of the 3 n_c constraint-mode columns
 // with no communication; the rows of Psi then go to their owners in one all-to-all. MUMPS's
-// distributed solve gained nothing on 2 ranks here, and the scatter of its distributed solution
-// into W cost more than the solve gained (README, MPI speed-ups, item a).
+// distributed solve phase with all the right-hand sides was no faster on 2 ranks than on one, and
+// the scatter of its distributed solution into W came on top (README, MPI speed-ups, item a).
+// The price: every rank holds a whole factor, and the factorisation itself no longer splits.
 // Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
 // -reduce_redundant, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
 // (e.g. -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves; with
