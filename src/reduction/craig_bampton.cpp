@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <numeric>
 
 namespace squeal {
@@ -16,35 +17,36 @@ namespace {
 
 using Dense = Eigen::Matrix<PetscReal, Eigen::Dynamic, Eigen::Dynamic>;
 
-// Every rank receives the whole (small) MPIDENSE/SEQDENSE matrix A.
-PetscErrorCode GatherDense(Mat A, Dense &out)
+// S = A_IB^T W (nB x n) on every rank, for a sparse A_IB with the row layout of W: each rank adds
+// a_ij W(i, :) to row j of S for the nonzeros of its rows (a few per row, near the interface),
+// then the shares are summed. PETSc's MatTransposeMatMult took 1.3 s per call on the 31119-DOF
+// pad for 1e8 flops (symbolic transpose and sparse-dense product).
+PetscErrorCode InterfaceTransposeProduct(Mat Aib, Mat W, Dense &S)
 {
   MPI_Comm           comm;
-  PetscInt           m, n, rstart, rend, lda;
-  const PetscScalar *a;
-  PetscMPIInt        size;
+  PetscInt           nB, n, rstart, rend, lda;
+  const PetscScalar *w;
   PetscFunctionBeginUser;
-  PetscCall(PetscObjectGetComm((PetscObject)A, &comm));
-  PetscCallMPI(MPI_Comm_size(comm, &size));
-  PetscCall(MatGetSize(A, &m, &n));
-  PetscCall(MatGetOwnershipRange(A, &rstart, &rend));
-  PetscCall(MatDenseGetLDA(A, &lda));
-  const PetscInt ml = rend - rstart;
-  // Local rows packed row-major, then gathered in rank order (= global row order).
-  std::vector<PetscReal> mine((size_t)ml * n);
-  PetscCall(MatDenseGetArrayRead(A, &a));
-  for (PetscInt i = 0; i < ml; ++i)
-    for (PetscInt j = 0; j < n; ++j) mine[(size_t)i * n + j] = PetscRealPart(a[i + (size_t)j * lda]);
-  PetscCall(MatDenseRestoreArrayRead(A, &a));
-  std::vector<int> counts(size), displs(size, 0);
-  const int        cnt = (int)(ml * n);
-  PetscCallMPI(MPI_Allgather(&cnt, 1, MPI_INT, counts.data(), 1, MPI_INT, comm));
-  for (int r = 1; r < size; ++r) displs[r] = displs[r - 1] + counts[r - 1];
-  std::vector<PetscReal> all((size_t)m * n);
-  PetscCallMPI(MPI_Allgatherv(mine.data(), cnt, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm));
-  out.resize(m, n);
-  for (PetscInt i = 0; i < m; ++i)
-    for (PetscInt j = 0; j < n; ++j) out(i, j) = all[(size_t)i * n + j];
+  PetscCall(PetscObjectGetComm((PetscObject)W, &comm));
+  PetscCall(MatGetSize(Aib, nullptr, &nB));
+  PetscCall(MatGetSize(W, nullptr, &n));
+  PetscCall(MatGetOwnershipRange(Aib, &rstart, &rend));
+  PetscCall(MatDenseGetLDA(W, &lda));
+  Dense St = Dense::Zero(n, nB); // S^T: the updates go down contiguous columns
+  PetscCall(MatDenseGetArrayRead(W, &w));
+  using RowMap = Eigen::Map<const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>, 0, Eigen::InnerStride<>>;
+  for (PetscInt i = rstart; i < rend; ++i) {
+    PetscInt           nc;
+    const PetscInt    *cols;
+    const PetscScalar *vals;
+    const RowMap       wi(w + (i - rstart), n, Eigen::InnerStride<>(lda));
+    PetscCall(MatGetRow(Aib, i, &nc, &cols, &vals));
+    for (PetscInt k = 0; k < nc; ++k) St.col(cols[k]) += PetscRealPart(vals[k]) * wi;
+    PetscCall(MatRestoreRow(Aib, i, &nc, &cols, &vals));
+  }
+  PetscCall(MatDenseRestoreArrayRead(W, &w));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, St.data(), (int)(n * nB), MPIU_REAL, MPI_SUM, comm));
+  S = St.transpose();
   PetscFunctionReturn(0);
 }
 
@@ -165,6 +167,91 @@ PetscErrorCode DetectRayleigh(Mat M, Mat K, Mat C, bool *is, PetscReal *a, Petsc
   PetscFunctionReturn(0);
 }
 
+// Psi = -K_II^{-1} K_IB into the first nB columns of W, with a sequential factor F of the whole
+// K_II on every rank: each rank solves a contiguous share of the columns alone (the same
+// sequential solve as on one rank: no distributed solution to scatter), then sends every other
+// rank the rows of its share that rank owns in W, in one all-to-all.
+PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Mat W)
+{
+  MPI_Comm        comm, fcomm;
+  PetscMPIInt     size, rank;
+  PetscInt        nI, nB, nIloc, lda;
+  const PetscInt *rows;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectGetComm((PetscObject)W, &comm));
+  PetscCall(PetscObjectGetComm((PetscObject)F, &fcomm));
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(MatGetSize(Kib, &nI, &nB));
+  PetscCall(MatGetLocalSize(W, &nIloc, nullptr));
+  PetscCall(MatGetOwnershipRanges(W, &rows));
+  std::vector<PetscInt> cols(size + 1, 0); // the columns rank r solves: [cols[r], cols[r + 1])
+  for (PetscMPIInt r = 0; r < size; ++r) cols[r + 1] = cols[r] + nB / size + (r < nB % size ? 1 : 0);
+  const PetscInt c0 = cols[rank], k = cols[rank + 1] - c0;
+
+  MatH X; // nI x k, this rank's columns of Psi, every row
+  PetscCall(MatCreateSeqDense(fcomm, nI, k, nullptr, X.out()));
+  {
+    // (-K_IB)^T, rows c0 .. c0 + k - 1, on this rank alone: MUMPS takes a sparse right-hand side
+    // by columns, i.e. its transpose by rows (MatMatTransposeSolve).
+    MatH KbiT;
+    IS   isr, isc;
+    Mat *sub;
+    PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, KbiT.out()));
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, k, c0, 1, &isr));
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, nI, 0, 1, &isc));
+    PetscCall(MatCreateSubMatrices(KbiT, 1, &isr, &isc, MAT_INITIAL_MATRIX, &sub));
+    PetscCall(ISDestroy(&isr));
+    PetscCall(ISDestroy(&isc));
+    PetscCall(MatScale(sub[0], -1.0));
+    if (k > 0 && sparse_rhs) PetscCall(MatMatTransposeSolve(F, sub[0], X));
+    else if (k > 0) {
+      MatH Bt, B;
+      PetscCall(MatTranspose(sub[0], MAT_INITIAL_MATRIX, Bt.out()));
+      PetscCall(MatConvert(Bt, MATSEQDENSE, MAT_INITIAL_MATRIX, B.out()));
+      PetscCall(MatMatSolve(F, B, X));
+    }
+    PetscCall(MatDestroySubMatrices(1, &sub));
+  }
+
+  // Rank q receives rows [rows[q], rows[q + 1]) of every rank's columns, column by column.
+  std::vector<PetscMPIInt> scnt(size), sdsp(size), rcnt(size), rdsp(size);
+  PetscInt                 soff = 0, roff = 0;
+  for (PetscMPIInt q = 0; q < size; ++q) {
+    PetscCall(PetscMPIIntCast(soff, &sdsp[q]));
+    PetscCall(PetscMPIIntCast(roff, &rdsp[q]));
+    PetscCall(PetscMPIIntCast((rows[q + 1] - rows[q]) * k, &scnt[q]));
+    PetscCall(PetscMPIIntCast(nIloc * (cols[q + 1] - cols[q]), &rcnt[q]));
+    soff += (rows[q + 1] - rows[q]) * k;
+    roff += nIloc * (cols[q + 1] - cols[q]);
+  }
+  std::vector<PetscScalar> sbuf((size_t)soff), rbuf((size_t)roff);
+  {
+    const PetscScalar *x;
+    PetscInt           ldx;
+    PetscCall(MatDenseGetLDA(X, &ldx));
+    PetscCall(MatDenseGetArrayRead(X, &x));
+    for (PetscMPIInt q = 0; q < size; ++q) {
+      const PetscInt m = rows[q + 1] - rows[q];
+      for (PetscInt j = 0; j < k; ++j)
+        std::copy(x + rows[q] + (size_t)j * ldx, x + rows[q] + m + (size_t)j * ldx, sbuf.begin() + sdsp[q] + (size_t)j * m);
+    }
+    PetscCall(MatDenseRestoreArrayRead(X, &x));
+  }
+  X.reset();
+  PetscCallMPI(MPI_Alltoallv(sbuf.data(), scnt.data(), sdsp.data(), MPIU_SCALAR, rbuf.data(), rcnt.data(), rdsp.data(),
+                             MPIU_SCALAR, comm));
+  PetscScalar *w;
+  PetscCall(MatDenseGetLDA(W, &lda));
+  PetscCall(MatDenseGetArray(W, &w)); // read-write: W holds the modes already
+  for (PetscMPIInt r = 0; r < size; ++r)
+    for (PetscInt j = cols[r]; j < cols[r + 1]; ++j)
+      std::copy(rbuf.begin() + rdsp[r] + (size_t)(j - cols[r]) * nIloc, rbuf.begin() + rdsp[r] + (size_t)(j - cols[r] + 1) * nIloc,
+                w + (size_t)j * lda);
+  PetscCall(MatDenseRestoreArray(W, &w));
+  PetscFunctionReturn(0);
+}
+
 // One log stage per phase of the reduction (-log_view), registered once per process.
 struct Stages {
   PetscLogStage factor, modes, constraint, project;
@@ -219,6 +306,13 @@ PetscErrorCode CraigBampton::SetRayleighShortcut(bool on)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode CraigBampton::SetRedundantFactor(bool on)
+{
+  PetscFunctionBeginUser;
+  redundant_ = on ? PETSC_TRUE : PETSC_FALSE;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
 {
   const char *const types[] = {"none", "craig_bampton"};
@@ -242,6 +336,8 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
                              "CraigBampton", rayleigh_, &rayleigh_, nullptr));
+  PetscCall(PetscOptionsBool("-redundant", "On several ranks, every rank factorises the whole K_II and solves its share of the constraint modes alone (false: one distributed MUMPS factorisation and solve)",
+                             "CraigBampton", redundant_, &redundant_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   const std::string pre = OptionName(prefix_.c_str(), "");
@@ -260,12 +356,16 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
 PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
 {
   MPI_Comm       comm = full.comm();
-  PetscLogDouble t0, t1, t2, t3, t4;
+  PetscLogDouble t0, t1, t2, t3, t4, cpu[5];
   PetscInt       N, rstart, rend;
   Stages         stages{};
+  PetscMPIInt    size;
   PetscFunctionBeginUser;
   PetscCall(GetStages(&stages));
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  bool redundant = size > 1 && redundant_; // the final choice follows -<prefix>st_pc_type
   PetscCall(PetscTime(&t0));
+  cpu[0] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC; // process CPU time, all threads (PetscGetCPUTime read ~0 here)
   info_ = ReductionInfo();
   PetscCall(MatGetSize(full.K, &N, nullptr));
   PetscCall(MatGetOwnershipRange(full.K, &rstart, &rend));
@@ -310,8 +410,8 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   {
     ST        st;
     KSP       ksp;
-    PC        pc;
-    PetscBool isfactor;
+    PC        pc, fpc = nullptr; // fpc: the PC that holds the factor (pc itself, or the redundant PC's inner one)
+    PetscBool isfactor, isredundant;
     PetscCall(EPSCreate(comm, eps.out()));
     PetscCall(EPSSetOptionsPrefix(eps, prefix_.c_str()));
     PetscCall(EPSSetOperators(eps, Kii, Mii));
@@ -325,19 +425,46 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     PetscCall(STGetKSP(st, &ksp));
     PetscCall(KSPSetType(ksp, KSPPREONLY));
     PetscCall(KSPGetPC(ksp, &pc));
-    PetscCall(PCSetType(pc, PCCHOLESKY));
-    PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    if (redundant) {
+      PetscCall(PCSetType(pc, PCREDUNDANT));
+      PetscCall(PCRedundantSetNumber(pc, size));
+    } else {
+      PetscCall(PCSetType(pc, PCCHOLESKY));
+      PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    }
     nev = nmodes_ > 0 ? nmodes_ : 24;
     nev = PetscMax(1, PetscMin(nev, PetscMin(max_modes_, nI)));
     PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
     PetscCall(EPSSetFromOptions(eps));
     PetscCall(KSPSetOperators(ksp, Kii, Kii));
+    PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &isredundant));
+    fpc = pc;
+    if (isredundant) {
+      // One whole copy of K_II per rank (one subcommunicator of one rank each), factorised by
+      // the same sequential Cholesky as on one rank; its options under -<prefix>st_redundant_.
+      KSP inner;
+      PetscCall(PCRedundantGetKSP(pc, &inner));
+      PetscCall(KSPSetType(inner, KSPPREONLY));
+      PetscCall(KSPGetPC(inner, &fpc));
+      PetscCall(PCSetType(fpc, PCCHOLESKY));
+      PetscCall(PCFactorSetMatSolverType(fpc, MATSOLVERMUMPS));
+    }
     PetscCall(KSPSetUp(ksp));
-    PetscCall(PetscObjectTypeCompareAny((PetscObject)pc, &isfactor, PCCHOLESKY, PCLU, ""));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)fpc, &isfactor, PCCHOLESKY, PCLU, ""));
     PetscCheck(isfactor, comm, kErrInput,
-               "reduction: -%sst_pc_type must be cholesky or lu: the constraint modes reuse the eigensolver's factorisation of K_II",
-               prefix_.c_str());
-    PetscCall(PCFactorGetMatrix(pc, &Fct));
+               "reduction: -%sst_%spc_type must be cholesky or lu: the constraint modes reuse the eigensolver's factorisation of K_II",
+               prefix_.c_str(), isredundant ? "redundant_" : "");
+    if (isredundant) {
+      MPI_Comm fcomm;
+      PetscMPIInt fsize;
+      PetscCall(PetscObjectGetComm((PetscObject)fpc, &fcomm));
+      PetscCallMPI(MPI_Comm_size(fcomm, &fsize));
+      PetscCheck(fsize == 1, comm, kErrInput,
+                 "reduction: -%sst_pc_redundant_number must be the number of ranks (%d): each rank solves its constraint modes alone",
+                 prefix_.c_str(), (int)size);
+    }
+    redundant = isredundant;
+    PetscCall(PCFactorGetMatrix(fpc, &Fct));
     MatFactorError ferr;
     PetscCall(MatFactorGetError(Fct, &ferr));
     PetscCheck(ferr == MAT_FACTOR_NOERROR, comm, kErrInput,
@@ -348,6 +475,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   }
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t1));
+  cpu[1] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
 
   // Fixed-interface modes of (K_II, M_II) up to the cut-off.
   PetscCall(PetscLogStagePush(stages.modes));
@@ -447,6 +575,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   }
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t2));
+  cpu[2] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
 
   // Constraint modes Psi = -K_II^{-1} K_IB: nB right-hand sides in one MatMatSolve, written straight
   // into the first nB columns of W (no second N x nB copy).
@@ -455,8 +584,11 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     MatH      R;
     Mat       Wpsi;
     PetscReal nrm;
+    if (redundant) PetscCall(RedundantConstraintModes(Fct, Kib, sparse_rhs_, W));
     PetscCall(MatDenseGetSubMatrix(W, PETSC_DECIDE, PETSC_DECIDE, 0, nB, &Wpsi));
-    if (sparse_rhs_) {
+    if (redundant) {
+      // Solved above, each rank its own columns.
+    } else if (sparse_rhs_) {
       // -K_IB as a sparse right-hand side (MUMPS ICNTL(20) = 1): the forward substitution
       // prunes the elimination tree to the paths its few nonzero rows reach. MUMPS takes it
       // centralised and transposed, so (-K_IB)^T is gathered on rank 0 (rows and columns).
@@ -489,6 +621,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   eps.reset();
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t3));
+  cpu[3] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
   PetscCall(PetscLogStagePush(stages.project));
 
   // A_r = T^T A T in the order [B sorted by global index, modes], then permuted to contact order:
@@ -499,12 +632,11 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   // For K the projection is known in closed form (Psi^T (K_IB + K_II Psi) = 0, Phi^T K_II Phi =
   // Omega^2): K_r = [K_BB + K_BI Psi, 0; 0, Omega^2], which saves the dense product W^T K_II W.
   auto project = [&](Mat A, bool stiffness, Dense &Ar) -> PetscErrorCode {
-    MatH  Aii, Aib, G, S;
+    MatH  Aii, Aib, G;
     Dense Sd, Abb;
     PetscFunctionBeginUser;
     PetscCall(MatCreateSubMatrix(A, isI, isB, MAT_INITIAL_MATRIX, Aib.out()));
-    PetscCall(MatTransposeMatMult(Aib, W, MAT_INITIAL_MATRIX, PETSC_DEFAULT, S.out()));
-    PetscCall(GatherDense(S, Sd));
+    PetscCall(InterfaceTransposeProduct(Aib, W, Sd));
     PetscCall(GatherSubmatrix(A, Bsorted, Abb));
     if (stiffness) {
       Ar                       = Dense::Zero(n2, n2);
@@ -583,11 +715,15 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(red.Validate());
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t4));
+  cpu[4] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
   info_.time_factor  = t1 - t0;
   info_.time_modes   = t2 - t1;
   info_.time_static  = t3 - t2;
   info_.time_project = t4 - t3;
   info_.time_total   = t4 - t0;
+  PetscLogDouble dcpu[4] = {cpu[1] - cpu[0], cpu[2] - cpu[1], cpu[3] - cpu[2], cpu[4] - cpu[3]};
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, dcpu, 4, MPI_DOUBLE, MPI_MAX, comm));
+  info_.cpu_factor = dcpu[0], info_.cpu_modes = dcpu[1], info_.cpu_static = dcpu[2], info_.cpu_project = dcpu[3];
   PetscLogDouble mem = 0;
   PetscCall(PetscMemoryGetCurrentUsage(&mem));
   PetscCallMPI(MPI_Allreduce(&mem, &info_.mem_peak, 1, MPI_DOUBLE, MPI_SUM, comm));
@@ -614,6 +750,9 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
                                    (double)info_.time_static, (double)info_.time_project,
                                    info_.rayleigh ? ", C = a M + b K projected as a M_r + b K_r" : "",
                                    (double)(info_.mem_peak / 1048576.0)));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  CPU time of the busiest rank: %.3f s (%.3f, %.3f, %.3f, %.3f)\n",
+                                   (double)(info_.cpu_factor + info_.cpu_modes + info_.cpu_static + info_.cpu_project),
+                                   (double)info_.cpu_factor, (double)info_.cpu_modes, (double)info_.cpu_static, (double)info_.cpu_project));
   PetscFunctionReturn(0);
 }
 

@@ -219,6 +219,66 @@ TEST(Reduction, DistributedReductionMatchesTheSerialOne)
   EXPECT_NEAR(f, f1, 1e-12 * f1);
 }
 
+// A x for x = (1 + 0.01 i) on the first nB (interface) DOFs, 0 elsewhere, the first nB entries on
+// every rank: the interface block of a reduced matrix, which depends on the constraint modes only.
+std::vector<double> InterfaceBlockTimes(Mat A, PetscInt nB)
+{
+  Vec        x, y, all;
+  VecScatter sc;
+  PetscInt   lo, hi, n;
+  PetscCallAbort(PETSC_COMM_WORLD, MatCreateVecs(A, &x, &y));
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetOwnershipRange(x, &lo, &hi));
+  PetscCallAbort(PETSC_COMM_WORLD, VecSet(x, 0.0));
+  for (PetscInt i = lo; i < PetscMin(hi, nB); ++i) PetscCallAbort(PETSC_COMM_WORLD, VecSetValue(x, i, 1.0 + 0.01 * i, INSERT_VALUES));
+  PetscCallAbort(PETSC_COMM_WORLD, VecAssemblyBegin(x));
+  PetscCallAbort(PETSC_COMM_WORLD, VecAssemblyEnd(x));
+  PetscCallAbort(PETSC_COMM_WORLD, MatMult(A, x, y));
+  PetscCallAbort(PETSC_COMM_WORLD, VecScatterCreateToAll(y, &sc, &all));
+  PetscCallAbort(PETSC_COMM_WORLD, VecScatterBegin(sc, y, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCallAbort(PETSC_COMM_WORLD, VecScatterEnd(sc, y, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetSize(all, &n));
+  const PetscScalar *a;
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetArrayRead(all, &a));
+  std::vector<double> out(a, a + PetscMin(n, nB));
+  PetscCallAbort(PETSC_COMM_WORLD, VecRestoreArrayRead(all, &a));
+  VecScatterDestroy(&sc), VecDestroy(&all), VecDestroy(&x), VecDestroy(&y);
+  return out;
+}
+
+TEST(Reduction, RedundantAndDistributedFactorsGiveTheSameReducedModel)
+{
+  // Under mpiexec -n 2 the default solves the constraint modes column share by column share on
+  // whole copies of K_II (-reduce_redundant); the other path is one distributed MUMPS factor.
+  // Both against the serial reduction: interface blocks of M, C and K to 1e-9, and the
+  // fixed-interface frequencies (the eigensolver through the redundant factor) to 1e-9.
+  PadParams p = SmallPad();
+  Model     full(PETSC_COMM_WORLD), full1(PETSC_COMM_SELF), red1(PETSC_COMM_SELF);
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  ASSERT_EQ(BuildPad(PETSC_COMM_SELF, p, full1), 0);
+  ReductionInfo info1;
+  ASSERT_EQ(Reduce(full1, 30000, red1, &info1), 0);
+  const PetscInt nB = 3 * full.contacts.Size();
+  ASSERT_FALSE(info1.freq.empty());
+  for (bool redundant : {true, false}) {
+    Model        red(PETSC_COMM_WORLD);
+    CraigBampton cb(full.comm());
+    ASSERT_EQ(cb.SetFMax(30000), 0);
+    ASSERT_EQ(cb.SetRedundantFactor(redundant), 0);
+    ASSERT_EQ(cb.Reduce(full, red), 0);
+    ASSERT_EQ(red.Size(), red1.Size());
+    for (auto pair : {std::make_pair((Mat)red.M, (Mat)red1.M), std::make_pair((Mat)red.K, (Mat)red1.K),
+                      std::make_pair((Mat)red.C, (Mat)red1.C)}) {
+      const std::vector<double> a = InterfaceBlockTimes(pair.first, nB), b = InterfaceBlockTimes(pair.second, nB);
+      ASSERT_EQ(a.size(), b.size());
+      double scale = 0, diff = 0;
+      for (size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), diff = std::max(diff, std::abs(a[i] - b[i]));
+      EXPECT_LT(diff, 1e-9 * scale) << (redundant ? "redundant" : "distributed");
+    }
+    ASSERT_EQ(cb.Info().freq.size(), info1.freq.size());
+    for (size_t k = 0; k < info1.freq.size(); ++k) EXPECT_NEAR(cb.Info().freq[k], info1.freq[k], 1e-9 * info1.freq[k]);
+  }
+}
+
 TEST(Reduction, RayleighShortcutEqualsTheProjectionOfC)
 {
   // The pad's C = a M + b K. The general path projects C: T^T C T must equal a M_r + b K_r, which

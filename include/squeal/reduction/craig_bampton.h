@@ -21,9 +21,16 @@
 // constraint modes, 3 n_c right-hand sides, and one symmetric product W^T (M_II W) of ~n^2 N flops
 // (Eigen kernels on each rank's rows, summed); K_r has a closed form and Rayleigh C = a M + b K
 // is reduced as a M_r + b K_r, so C costs a second product only when it is not Rayleigh.
+// On several ranks (-reduce_redundant, default): every rank factorises the whole K_II on its own
+// (PCREDUNDANT around the same Cholesky) and solves its share of the 3 n_c constraint-mode columns
+// with no communication; the rows of Psi then go to their owners in one all-to-all. MUMPS's
+// distributed solve phase with all the right-hand sides was no faster on 2 ranks than on one, and
+// the scatter of its distributed solution into W came on top (README, MPI speed-ups, item a).
+// The price: every rank holds a whole factor, and the factorisation itself no longer splits.
 // Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
-// and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_* (e.g.
-// -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves).
+// -reduce_redundant, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
+// (e.g. -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves; with
+// -reduce_redundant on several ranks the factor's options are -reduce_st_redundant_mat_mumps_*).
 #pragma once
 
 #include "squeal/core/handle.h"
@@ -38,6 +45,9 @@ struct ReductionInfo {
   PetscInt               N = 0, n_interface = 0, n_modes = 0;
   std::vector<PetscReal> freq;                // Hz, fixed-interface modes kept
   PetscReal              time_factor = 0, time_modes = 0, time_static = 0, time_project = 0, time_total = 0; // s
+  // s, CPU time of the busiest rank in each stage: the work per rank, which a loaded machine
+  // (other processes taking time slices) changes far less than the wall times above.
+  PetscReal              cpu_factor = 0, cpu_modes = 0, cpu_static = 0, cpu_project = 0;
   bool                   rayleigh = false; // C detected as a M + b K and projected as a M_r + b K_r
   PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
 };
@@ -52,6 +62,9 @@ public:
   // true (default): a C found equal to a M + b K (to 1e-12) is reduced as a M_r + b K_r, saving one
   // dense product; false: C is always projected (-reduce_rayleigh).
   PetscErrorCode SetRayleighShortcut(bool on);
+  // true (default): on several ranks every rank factorises the whole K_II and solves its share of
+  // the constraint modes alone; false: one distributed MUMPS factorisation and solve (-reduce_redundant).
+  PetscErrorCode SetRedundantFactor(bool on);
   // -reduce_type, -reduce_fmax, -reduce_nmodes, -reduce_fband; *enabled tells whether
   // -reduce_type asks for a reduction.
   PetscErrorCode SetFromOptions(bool *enabled = nullptr);
@@ -70,6 +83,7 @@ private:
   PetscBool     rayleigh_  = PETSC_TRUE;
   PetscBool     sparse_rhs_ = PETSC_TRUE;
   PetscBool     count_modes_ = PETSC_TRUE;
+  PetscBool     redundant_   = PETSC_TRUE;
   ReductionInfo info_;
 };
 
