@@ -105,75 +105,49 @@ PetscErrorCode Checkpoint(MPI_Comm comm, io::H5Writer &out, const char *done)
           out.Path().c_str());
 }
 
-} // namespace
+// Every component of a run, on one communicator: the world, or rank 0 alone for a reduced model.
+struct Components {
+  EquilibriumSolver eqs;
+  StabilitySolver   stab;
+  SweepSolver       sweep;
+  ThetaIntegrator   theta;
+  TransientAnalysis transient;
+  EnergyAnalysis    energy;
+  Shooting          shooting;
+  Continuation      continuation;
+  explicit Components(MPI_Comm c) : eqs(c), stab(c), sweep(c), theta(c), transient(c), energy(c), shooting(c), continuation(c) {}
+  PetscErrorCode SetFromOptions(const Model &model, const Request &req)
+  {
+    PetscFunctionBeginUser;
+    PetscCall(eqs.SetFromOptions());
+    PetscCall(stab.SetFromOptions());
+    PetscCall(sweep.SetFromOptions(model.contacts.V));
+    PetscCall(theta.SetFromOptions());
+    PetscCall(transient.SetFromOptions());
+    PetscCall(energy.SetFromOptions());
+    energy.full_scan = req.energy_named;
+    PetscCall(shooting.SetFromOptions());
+    PetscCall(continuation.SetFromOptions());
+    PetscFunctionReturn(0);
+  }
+};
 
-PetscErrorCode RunApp(int argc, char **argv)
+struct Stages {
+  PetscLogStage eq, stab, sweep, transient, energy, shooting;
+};
+
+// The analyses the request names, in order, each written and flushed to `output` before the next.
+PetscErrorCode RunAnalyses(MPI_Comm comm, Model &model, Components &k, const Request &req, const char *output, const Stages &st)
 {
-  const MPI_Comm comm = PETSC_COMM_WORLD;
-  char           output[PETSC_MAX_PATH_LEN] = "";
-  char          *names[16];
-  PetscInt       nnames = 16;
-  PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE;
-  Request        req;
-  PetscLogStage  st_eq, st_stab, st_sweep, st_transient, st_energy, st_shooting;
+  EquilibriumSolver &eqs          = k.eqs;
+  StabilitySolver   &stab         = k.stab;
+  SweepSolver       &sweep        = k.sweep;
+  ThetaIntegrator   &theta        = k.theta;
+  TransientAnalysis &transient    = k.transient;
+  EnergyAnalysis    &energy       = k.energy;
+  Shooting          &shooting     = k.shooting;
+  Continuation      &continuation = k.continuation;
   PetscFunctionBeginUser;
-  PetscCall(ReadScene(argc, argv));
-  PetscCall(PetscOptionsHasHelp(nullptr, &help));
-  PetscCall(PetscLogStageRegister("Equilibrium", &st_eq));
-  PetscCall(PetscLogStageRegister("Stability", &st_stab));
-  PetscCall(PetscLogStageRegister("Sweep", &st_sweep));
-  PetscCall(PetscLogStageRegister("Transient", &st_transient));
-  PetscCall(PetscLogStageRegister("Energy", &st_energy));
-  PetscCall(PetscLogStageRegister("Shooting", &st_shooting));
-
-  const std::string default_output = DefaultOutput();
-  PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
-  PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
-  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting, continuation", "RunApp", names, &nnames, &set));
-  std::snprintf(output, sizeof(output), "%s", default_output.c_str());
-  PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
-                               sizeof(output), nullptr));
-  PetscCall(PetscOptionsBool("-squeal_traceback", "Full PETSc tracebacks instead of one-line error messages", "PushErrorHandler",
-                             traceback, &traceback, nullptr));
-  PetscOptionsEnd();
-  if (!set) {
-    nnames   = 1;
-    names[0] = nullptr;
-    PetscCall(PetscStrallocpy("stability", &names[0]));
-  }
-  PetscErrorCode perr = ParseAnalyses(names, nnames, req);
-  for (PetscInt i = 0; i < nnames; ++i) PetscCall(PetscFree(names[i]));
-  PetscCall(perr);
-
-  // Read every component's options up front (cheap) so that a typo is caught before hours of work.
-  Model       model(comm);
-  std::string export_dir;
-  PetscCall(ModelCreateFromOptions(comm, model, &export_dir));
-  EquilibriumSolver eqs(comm);
-  PetscCall(eqs.SetFromOptions());
-  StabilitySolver stab(comm);
-  PetscCall(stab.SetFromOptions());
-  SweepSolver sweep(comm);
-  PetscCall(sweep.SetFromOptions(model.contacts.V));
-  ThetaIntegrator theta(comm);
-  PetscCall(theta.SetFromOptions());
-  TransientAnalysis transient(comm);
-  PetscCall(transient.SetFromOptions());
-  EnergyAnalysis energy(comm);
-  PetscCall(energy.SetFromOptions());
-  energy.full_scan = req.energy_named;
-  Shooting shooting(comm);
-  PetscCall(shooting.SetFromOptions());
-  Continuation continuation(comm);
-  PetscCall(continuation.SetFromOptions());
-  if (help) PetscFunctionReturn(0);
-  PetscCall(CheckUnusedOptions(comm, true));
-
-  PetscCall(model.View(PETSC_VIEWER_STDOUT_(comm)));
-  if (!export_dir.empty()) {
-    PetscCall(model.Export(export_dir.c_str(), "bin"));
-    PetscCall(PetscPrintf(comm, "model written to %s/ (M.bin, K.bin, C.bin, F.bin, contacts.txt)\n", export_dir.c_str()));
-  }
   io::H5Writer out;
   PetscCall(out.Open(comm, output));
   out.KeepOnError("failed: the run stopped with an error; the groups written before it are complete");
@@ -182,14 +156,14 @@ PetscErrorCode RunApp(int argc, char **argv)
   SlidingEquilibrium eq;
   StabilityResult    res;
   if (req.stability) {
-    PetscCall(PetscLogStagePush(st_eq));
+    PetscCall(PetscLogStagePush(st.eq));
     PetscCall(eqs.Solve(model, eq));
     PetscCall(PetscLogStagePop());
     PetscCall(eqs.View(model, eq, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(eqs.ViewFromOptions(model, eq));
     PetscCall(WriteEquilibrium(model, eq, out));
 
-    PetscCall(PetscLogStagePush(st_stab));
+    PetscCall(PetscLogStagePush(st.stab));
     PetscCall(stab.Solve(model, eq, res));
     PetscCall(PetscLogStagePop());
     PetscCall(stab.View(res, PETSC_VIEWER_STDOUT_(comm)));
@@ -211,7 +185,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   }
   if (req.sweep) {
     SweepResult sr;
-    PetscCall(PetscLogStagePush(st_sweep));
+    PetscCall(PetscLogStagePush(st.sweep));
     PetscCall(sweep.Solve(sr));
     PetscCall(PetscLogStagePop());
     PetscCall(sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
@@ -220,7 +194,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   }
   if (req.energy) {
     EnergyEstimate est;
-    PetscCall(PetscLogStagePush(st_energy));
+    PetscCall(PetscLogStagePush(st.energy));
     PetscCall(energy.Estimate(model, eq, res, est));
     PetscCall(PetscLogStagePop());
     PetscCall(energy.View(est, PETSC_VIEWER_STDOUT_(comm)));
@@ -261,7 +235,7 @@ PetscErrorCode RunApp(int argc, char **argv)
       PetscCall(VecCopy(est.dU0, dU0));
       PetscCall(VecScale(dU0, shooting.q_scale));
       ShootingResult sres;
-      PetscCall(PetscLogStagePush(st_shooting));
+      PetscCall(PetscLogStagePush(st.shooting));
       PetscErrorCode serr = shooting.Solve(model, eq, theta, U0, dU0, est.T0, sres);
       PetscCall(PetscLogStagePop());
       PetscCall(shooting.Write(sres, out)); // also the best iterate of a failed run
@@ -280,7 +254,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   }
   if (req.transient) {
     TransientResult tr;
-    PetscCall(PetscLogStagePush(st_transient));
+    PetscCall(PetscLogStagePush(st.transient));
     PetscErrorCode terr = transient.Run(model, eq, res, theta, tr);
     PetscCall(PetscLogStagePop());
     // Whatever was recorded is written, also when the run stopped early.
@@ -293,6 +267,92 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(out.SetStatus("complete"));
   PetscCall(out.Close());
   PetscCall(PetscPrintf(comm, "results written to %s\n", output));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode RunApp(int argc, char **argv)
+{
+  const MPI_Comm comm = PETSC_COMM_WORLD;
+  char           output[PETSC_MAX_PATH_LEN] = "";
+  char          *names[16];
+  PetscInt       nnames = 16;
+  PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE, gather = PETSC_TRUE;
+  Request        req;
+  Stages         st;
+  PetscFunctionBeginUser;
+  PetscCall(ReadScene(argc, argv));
+  PetscCall(PetscOptionsHasHelp(nullptr, &help));
+  PetscCall(PetscLogStageRegister("Equilibrium", &st.eq));
+  PetscCall(PetscLogStageRegister("Stability", &st.stab));
+  PetscCall(PetscLogStageRegister("Sweep", &st.sweep));
+  PetscCall(PetscLogStageRegister("Transient", &st.transient));
+  PetscCall(PetscLogStageRegister("Energy", &st.energy));
+  PetscCall(PetscLogStageRegister("Shooting", &st.shooting));
+
+  const std::string default_output = DefaultOutput();
+  PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
+  PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting, continuation", "RunApp", names, &nnames, &set));
+  std::snprintf(output, sizeof(output), "%s", default_output.c_str());
+  PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
+                               sizeof(output), nullptr));
+  PetscCall(PetscOptionsBool("-reduce_gather",
+                             "On several ranks, analyse a reduced (dense) model on rank 0 alone after the reduction (except sweep and "
+                             "continuation, which spread their points over the ranks)",
+                             "RunApp", gather, &gather, nullptr));
+  PetscCall(PetscOptionsBool("-squeal_traceback", "Full PETSc tracebacks instead of one-line error messages", "PushErrorHandler",
+                             traceback, &traceback, nullptr));
+  PetscOptionsEnd();
+  if (!set) {
+    nnames   = 1;
+    names[0] = nullptr;
+    PetscCall(PetscStrallocpy("stability", &names[0]));
+  }
+  PetscErrorCode perr = ParseAnalyses(names, nnames, req);
+  for (PetscInt i = 0; i < nnames; ++i) PetscCall(PetscFree(names[i]));
+  PetscCall(perr);
+
+  // Read every component's options up front (cheap) so that a typo is caught before hours of work.
+  Model       model(comm);
+  std::string export_dir;
+  bool        reduced = false;
+  PetscCall(ModelCreateFromOptions(comm, model, &export_dir, &reduced));
+  Components k(comm);
+  PetscCall(k.SetFromOptions(model, req));
+  if (help) PetscFunctionReturn(0);
+  PetscCall(CheckUnusedOptions(comm, true));
+
+  PetscCall(model.View(PETSC_VIEWER_STDOUT_(comm)));
+  if (!export_dir.empty()) {
+    PetscCall(model.Export(export_dir.c_str(), "bin"));
+    PetscCall(PetscPrintf(comm, "model written to %s/ (M.bin, K.bin, C.bin, F.bin, contacts.txt)\n", export_dir.c_str()));
+  }
+  PetscMPIInt size, rank;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  // A reduced model is dense (every interface DOF couples to every other): a few thousand DOFs
+  // whose distributed products, eigensolves and flows cost more in messages than they save (the
+  // 542-DOF pad's pipeline: 72 s on one rank, 119 s on two). The reduction itself splits well, so
+  // after it the model goes to rank 0 and the analyses run there; the other ranks wait. The sweep
+  // and the continuation spread their points over the ranks themselves, so they keep every rank.
+  if (size > 1 && gather && reduced && !req.sweep && !req.continuation) {
+    Model model0(PETSC_COMM_SELF);
+    PetscCall(ModelGatherToRankZero(model, model0));
+    PetscCall(PetscPrintf(comm, "the reduced model (%" PetscInt_FMT " DOFs, dense) is analysed on rank 0 alone: split over %d ranks it costs more "
+                                "than it saves (-reduce_gather 0 splits it)\n",
+                          model.Size(), size));
+    PetscErrorCode err = 0;
+    if (rank == 0) {
+      Components k0(PETSC_COMM_SELF);
+      err = k0.SetFromOptions(model0, req);
+      if (!err) err = RunAnalyses(PETSC_COMM_SELF, model0, k0, req, output, st);
+    }
+    // Rank 0 has printed the error; the others only share the exit status.
+    PetscCallMPI(MPI_Bcast(&err, 1, MPI_INT, 0, comm));
+    if (err) PetscFunctionReturn(err);
+  } else PetscCall(RunAnalyses(comm, model, k, req, output, st));
   PetscCall(CheckUnusedOptions(comm, false));
   PetscFunctionReturn(0);
 }

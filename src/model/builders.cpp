@@ -301,7 +301,7 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir)
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir, bool *reduced)
 {
   const char *const types[] = {"three_dof", "chain", "file", "pad"};
   const char *const laws[]  = {"planar", "rectilinear"};
@@ -401,6 +401,7 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
     CraigBampton cb(comm);
     bool         reduce = false;
     PetscCall(cb.SetFromOptions(&reduce));
+    if (reduced) *reduced = reduce && !help;
     if (reduce && !help) {
       Model red(comm);
       PetscCall(cb.Reduce(model, red));

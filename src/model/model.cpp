@@ -183,4 +183,41 @@ PetscErrorCode Model::Export(const char *dir, const char *format) const
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst)
+{
+  PetscMPIInt rank;
+  const PetscInt N = src.Size();
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(src.comm(), &rank));
+  PetscCheck(dst.comm() == PETSC_COMM_SELF, src.comm(), PETSC_ERR_ARG_WRONG, "ModelGatherToRankZero: the copy must be on PETSC_COMM_SELF");
+  Handle<IS> all;
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, rank == 0 ? N : 0, 0, 1, all.out()));
+  auto gather = [&](Mat A, MatH &out) -> PetscErrorCode {
+    Mat *sub;
+    IS   is = all;
+    PetscFunctionBeginUser;
+    PetscCall(MatCreateSubMatrices(A, 1, &is, &is, MAT_INITIAL_MATRIX, &sub));
+    if (rank == 0) {
+      PetscCall(PetscObjectReference((PetscObject)sub[0]));
+      *out.out() = sub[0];
+    }
+    PetscCall(MatDestroySubMatrices(1, &sub));
+    PetscFunctionReturn(0);
+  };
+  PetscCall(gather(src.M, dst.M));
+  PetscCall(gather(src.K, dst.K));
+  if (src.HasDamping()) PetscCall(gather(src.C, dst.C));
+  VecScatter sc;
+  Vec        f0;
+  PetscCall(VecScatterCreateToZero(src.F, &sc, &f0));
+  PetscCall(VecScatterBegin(sc, src.F, f0, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, src.F, f0, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterDestroy(&sc));
+  if (rank == 0) *dst.F.out() = f0;
+  else PetscCall(VecDestroy(&f0));
+  dst.contacts = src.contacts;
+  dst.name     = src.name;
+  PetscFunctionReturn(0);
+}
+
 } // namespace squeal

@@ -60,6 +60,6 @@ PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactS
 // Options: -model_* for the structure, -contact_mu, -contact_v, -contact_friction. The directory
 // given by -model_export (empty if none) is returned in export_dir; writing it is the caller's
 // choice (a sweep builds one model per rank and must not write it from every rank).
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir = nullptr);
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir = nullptr, bool *reduced = nullptr);
 
 } // namespace squeal

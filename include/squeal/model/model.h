@@ -39,4 +39,9 @@ private:
   MPI_Comm comm_;
 };
 
+// Fills dst, a model on PETSC_COMM_SELF, on rank 0 of src's communicator with the whole of src
+// (M, C, K sequential, F, the contact set, the name); dst is left empty on the other ranks.
+// Collective on src's communicator.
+PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst);
+
 } // namespace squeal
