@@ -61,7 +61,8 @@ template <class MatW, class VecC, class VecG, class VecF, class VecR, class VecV
 EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, const MatW &hW, const VecC &rho_n, const VecC &rho_t, const VecC &speed,
                                     const VecF &w_f, const VecG &gap0, VecR &r, VecV &v)
 {
-  const Eigen::Index nc = rho_n.size();
+  constexpr bool     kFixed = MatW::SizeAtCompileTime != Eigen::Dynamic;
+  const Eigen::Index nc     = rho_n.size();
   LocalSolveInfo     info;
   v.noalias() = w_f + hW * r;
   for (info.iterations = 1; info.iterations <= p.max_it; ++info.iterations) {
@@ -85,7 +86,9 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, cons
         }
       }
       const PetscReal dt = rt - r[o + kT], db = rb - r[o + kB], dn = rn - r[o + kN];
-      if ((dt != 0) | (db != 0) | (dn != 0)) { // one branch instead of three
+      // Only changed points update v (one branch instead of three), except on compile-time sizes,
+      // where adding hW times zeros (v unchanged) costs less than the test.
+      if (kFixed || (dt != 0) | (db != 0) | (dn != 0)) {
         if constexpr (std::is_base_of_v<Eigen::SparseMatrixBase<MatW>, MatW>) AddColumns(hW, o, dt, db, dn, v);
         else v.noalias() += hW.col(o + kT) * dt + hW.col(o + kB) * db + hW.col(o + kN) * dn;
         r[o + kT] = rt;
