@@ -227,3 +227,79 @@ TEST(Transient, NoFrictionDecaysToEquilibrium)
   EXPECT_LT(last, 1e-3 * first); // every mode damped (sigma <= -10 1/s over 0.65 s)
   EXPECT_EQ(r.summary.frac_separated, 0.0);
 }
+
+// The dense step's kernel compiled for the 3-DOF sizes (with its inline Vec array access) against
+// the run-time-sized kernel (-theta_fixed_size false) and the sparse back end (PETSc KSP, another
+// code path): same states to round-off and the same fixed-point passes through impacts, stick,
+// slip and separation, on both reference cases; and every step marks U and dU as changed
+// (PETSc's cached norms are not reused).
+TEST(Theta, FixedSizeKernelMatchesRunTimeSizesAndSparseBackEnd)
+{
+  for (PetscReal V : {3.0, 0.75}) {
+    ThreeDofParams p;
+    p.V = V;
+    Model model;
+    ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, p, model), 0);
+    EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+    SlidingEquilibrium eq;
+    ASSERT_EQ(eqs.Solve(model, eq), 0);
+    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-gen_fixed_size", "false"), 0);
+    struct Integration {
+      ThetaIntegrator ti{PETSC_COMM_WORLD};
+      Vec             U = nullptr, dU = nullptr;
+      Eigen::VectorXd r;
+      ~Integration()
+      {
+        VecDestroy(&U);
+        VecDestroy(&dU);
+      }
+    } run[3]; // fixed sizes, run-time sizes, sparse back end
+    const double h = 1e-5;
+    for (int k = 0; k < 3; ++k) {
+      if (k == 1) ASSERT_EQ(run[k].ti.SetOptionsPrefix("gen_"), 0);
+      ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
+      ASSERT_EQ(run[k].ti.SetDenseMax(k == 2 ? 0 : 200), 0);
+      ASSERT_EQ(run[k].ti.SetUp(model, h), 0);
+      ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
+      ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
+      ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
+      // Case 1 far from the equilibrium (lift-off, impacts); case 2 starting at the belt's speed (stick).
+      SetState(run[k].dU, V > 1 ? Eigen::Vector3d(0.4, -0.3, 0.25) : Eigen::Vector3d(V, 0, 0.02));
+      run[k].r = Eigen::Vector3d(p.mu * eq.N[0], 0, eq.N[0]);
+    }
+    ASSERT_TRUE(run[0].ti.FixedSizeKernel());
+    ASSERT_FALSE(run[1].ti.FixedSizeKernel());
+    ASSERT_FALSE(run[2].ti.Dense());
+    ASSERT_EQ(PetscOptionsClearValue(nullptr, "-gen_fixed_size"), 0);
+    std::vector<int> status;
+    int              seen[3] = {0, 0, 0};
+    double           max_gen = 0, max_sparse = 0;
+    for (PetscInt i = 0; i < 4000; ++i) {
+      StepInfo  info[3];
+      PetscReal norm, dnorm;
+      ASSERT_EQ(VecNorm(run[0].U, NORM_2, &norm), 0); // cached by PETSc until the Vec's state changes
+      ASSERT_EQ(VecNorm(run[0].dU, NORM_2, &dnorm), 0);
+      for (int k = 0; k < 3; ++k) ASSERT_EQ(run[k].ti.Step(run[k].U, run[k].dU, run[k].r, &info[k]), 0);
+      Eigen::VectorXd z[3];
+      for (int k = 0; k < 3; ++k) {
+        z[k].resize(6);
+        z[k] << test::ToDense(run[k].U) / 1e-4, test::ToDense(run[k].dU); // displacements in 0.1 mm, velocities in m/s
+      }
+      ASSERT_EQ(VecNorm(run[0].U, NORM_2, &norm), 0);
+      ASSERT_EQ(VecNorm(run[0].dU, NORM_2, &dnorm), 0);
+      ASSERT_NEAR(norm, 1e-4 * z[0].head(3).norm(), 1e-14 * norm) << "stale norm of U after step " << i;
+      ASSERT_NEAR(dnorm, z[0].tail(3).norm(), 1e-14 * dnorm) << "stale norm of dU after step " << i;
+      ASSERT_EQ(info[0].contact.iterations, info[1].contact.iterations) << "step " << i;
+      max_gen    = std::max(max_gen, (z[0] - z[1]).lpNorm<Eigen::Infinity>());
+      max_sparse = std::max(max_sparse, (z[0] - z[2]).lpNorm<Eigen::Infinity>());
+      run[0].ti.Contact().Status(run[0].r, status);
+      ++seen[status[0]];
+    }
+    EXPECT_LT(max_gen, 1e-11) << "V = " << V;
+    EXPECT_LT(max_sparse, 1e-9) << "V = " << V;
+    EXPECT_GT(seen[V > 1 ? kOpen : kStick], 0) << "V = " << V;
+    EXPECT_GT(seen[kSlip], 0) << "V = " << V;
+    PetscPrintf(PETSC_COMM_WORLD, "V = %.2f: open / stick / slip steps %d / %d / %d, largest difference to run-time sizes %.2e, to the sparse back end %.2e\n",
+                (double)V, seen[kOpen], seen[kStick], seen[kSlip], max_gen, max_sparse);
+  }
+}

@@ -57,14 +57,15 @@ EIGEN_ALWAYS_INLINE void AddColumns(const Eigen::SparseMatrix<PetscReal> &hW, Ei
 // The fixed-point passes on any Eigen storage (dynamic or fixed size): hW = h W (3 n_c square),
 // rho_n, rho_t, speed, gap0 per point, w_f and r per local row; v = w_f + h W r on return.
 // Always inlined: on fixed sizes r and v then stay in registers across the passes.
-template <class MatW, class VecC, class VecG, class VecF, class VecR, class VecV>
-EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, const MatW &hW, const VecC &rho_n, const VecC &rho_t, const VecC &speed,
-                                    const VecF &w_f, const VecG &gap0, VecR &r, VecV &v)
+template <bool Rectilinear, class MatW, class VecC, class VecG, class VecF, class VecR, class VecV>
+EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPassesLaw(const FixedPointParams &p, const MatW &hW, const VecC &rho_n, const VecC &rho_t,
+                                                    const VecC &speed, const VecF &w_f, const VecG &gap0, VecR &r, VecV &v)
 {
-  const Eigen::Index nc = rho_n.size();
-  LocalSolveInfo     info;
+  constexpr bool     kFixed = MatW::SizeAtCompileTime != Eigen::Dynamic;
+  const Eigen::Index nc     = rho_n.size();
+  PetscReal          residual = 0; // a local, not info's member: stays in a register across the passes
   v.noalias() = w_f + hW * r;
-  for (info.iterations = 1; info.iterations <= p.max_it; ++info.iterations) {
+  for (PetscInt it = 1; it <= p.max_it; ++it) {
     PetscReal change = 0, rn_sum = 0;
     for (Eigen::Index c = 0; c < nc; ++c) {
       const Eigen::Index o  = 3 * c;
@@ -73,7 +74,7 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, cons
       PetscReal          rt = r[o + kT] - rho_t[c] * (v[o + kT] - speed[c]);
       PetscReal          rb = r[o + kB] - rho_t[c] * v[o + kB];
       const PetscReal    a  = p.mu * rn;
-      if (p.rectilinear) {
+      if constexpr (Rectilinear) {
         rt = std::min(a, std::max(-a, rt));
         rb = 0;
       } else {
@@ -85,7 +86,9 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, cons
         }
       }
       const PetscReal dt = rt - r[o + kT], db = rb - r[o + kB], dn = rn - r[o + kN];
-      if ((dt != 0) | (db != 0) | (dn != 0)) { // one branch instead of three
+      // Only changed points update v (one branch instead of three), except on compile-time sizes,
+      // where adding hW times zeros (v unchanged) costs less than the test.
+      if (kFixed || (dt != 0) | (db != 0) | (dn != 0)) {
         if constexpr (std::is_base_of_v<Eigen::SparseMatrixBase<MatW>, MatW>) AddColumns(hW, o, dt, db, dn, v);
         else v.noalias() += hW.col(o + kT) * dt + hW.col(o + kB) * db + hW.col(o + kN) * dn;
         r[o + kT] = rt;
@@ -95,14 +98,19 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, cons
       change += std::abs(dt) + std::abs(db) + std::abs(dn);
       rn_sum += rn;
     }
-    info.residual = change / (p.r_ref + rn_sum);
-    if (!(info.residual > p.tol)) { // also stops on NaN, which the caller reports
-      info.converged = !std::isnan(info.residual);
-      return info;
-    }
+    residual = change / (p.r_ref + rn_sum);
+    if (!(residual > p.tol)) return {it, residual, !std::isnan(residual)}; // also stops on NaN, which the caller reports
   }
-  info.iterations = p.max_it;
-  return info;
+  return {p.max_it, residual, false};
+}
+
+// The passes with the friction law's branch taken once per solve instead of once per point and pass.
+template <class MatW, class VecC, class VecG, class VecF, class VecR, class VecV>
+EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, const MatW &hW, const VecC &rho_n, const VecC &rho_t, const VecC &speed,
+                                    const VecF &w_f, const VecG &gap0, VecR &r, VecV &v)
+{
+  if (p.rectilinear) return ContactPassesLaw<true>(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+  return ContactPassesLaw<false>(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
 }
 
 class LocalContactSolver {

@@ -4,7 +4,7 @@
 // because on 3 x 3 data Eigen's run-time-sized products and vector expressions cost several times
 // the instructions of fixed-size ones (benchmarks/bench_step.cpp). Same equations, same order of
 // operations per row: the instantiations differ by round-off only.
-// The kernel maps the integrator's matrices (no copies); ThetaIntegrator remakes it in SetUp.
+// The kernel maps the integrator's matrices (no copies but h Y); ThetaIntegrator remakes it in SetUp.
 #pragma once
 
 #include "squeal/contact/local_solver.h"
@@ -44,7 +44,7 @@ class DenseStepKernelT final : public DenseStepKernel {
 public:
   explicit DenseStepKernelT(const DenseStepData &d)
     : n_(d.P1->rows()), nc_(d.g0->size()), h_(d.h), t_(d.theta), P1_(d.P1->data(), n_, n_), P2_(d.P2->data(), n_, n_),
-      Y_(d.Y->data(), n_, 3 * nc_), Ht_(d.Ht->data(), 3 * nc_, n_), p3_(d.p3->data(), n_), g0_(d.g0->data(), nc_), local_(d.local)
+      hY_(d.h * *d.Y), Ht_(d.Ht->data(), 3 * nc_, n_), p3_(d.p3->data(), n_), g0_(d.g0->data(), nc_), local_(d.local)
   {
     vf_.resize(n_), dU0_.resize(n_), wf_.resize(3 * nc_), gap_.resize(nc_);
   }
@@ -71,7 +71,7 @@ public:
       *info = local_->SolveSized<NC>(wf, gap, R); // (S6)-(S7)
       dU0   = dU;
       dU    = vf;
-      dU.noalias() += h * (Y_ * R); // (S8)
+      dU.noalias() += hY_ * R; // (S8)
     } else {
       dU0 = dU;
       dU  = vf;
@@ -91,7 +91,7 @@ private:
   const Eigen::Index  n_, nc_;
   const PetscReal     h_, t_;
   const CMap<N, N>    P1_, P2_;
-  const CMap<N, M>    Y_;
+  const Eigen::Matrix<PetscReal, N, M> hY_; // h Y: Eigen's fixed-size h (Y R) multiplied Y by h at every step
   const CMap<M, N>    Ht_;
   const CMap<N, 1>    p3_;
   const CMap<NC, 1>   g0_;

@@ -118,7 +118,7 @@ private:
   PetscErrorCode SetUpDense();
   PetscErrorCode DenseStep(Eigen::Ref<Eigen::VectorXd> U, Eigen::Ref<Eigen::VectorXd> dU, Eigen::VectorXd &r, StepInfo *info);
   void           SetUpKernel(); // after SetUpDense and local_.Setup
-  PetscErrorCode StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info); // gathered dense or sparse
+  PetscErrorCode StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info); // non-native Vecs, gathered dense or sparse
   PetscErrorCode Gather(Vec x, Eigen::VectorXd &out); // the whole vector on every rank (dense back end)
   PetscErrorCode SetUpSparse();
   PetscErrorCode ToLocal(Vec x, Eigen::VectorXd &out); // sparse back end: H^T x gathered
