@@ -264,7 +264,9 @@ TEST(Continuation, ParameterSlicesOverRankGroupsGiveOneBranch)
   for (size_t i = 0; i < res.points.size(); ++i) {
     ++n[res.points[i].slice];
     EXPECT_EQ(res.points[i].slice, res.points[i].param < 0.5 ? 0 : 1) << "mu = " << res.points[i].param;
-    if (i) EXPECT_GT(res.points[i].param, res.points[i - 1].param);
+    if (i) {
+      EXPECT_GT(res.points[i].param, res.points[i - 1].param);
+    }
   }
   EXPECT_GT(n[0], 1);
   EXPECT_GT(n[1], 1);

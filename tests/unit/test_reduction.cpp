@@ -119,7 +119,9 @@ TEST(Pad, RigidTranslationLoadsOnlyTheSupportSprings)
   for (int dir = 0; dir < 3; ++dir) {
     ASSERT_EQ(VecSet(x, 0.0), 0);
     for (PetscInt i = lo; i < hi; ++i)
-      if (i % 3 == dir) ASSERT_EQ(VecSetValue(x, i, 1.0, INSERT_VALUES), 0);
+      if (i % 3 == dir) {
+        ASSERT_EQ(VecSetValue(x, i, 1.0, INSERT_VALUES), 0);
+      }
     ASSERT_EQ(VecAssemblyBegin(x), 0);
     ASSERT_EQ(VecAssemblyEnd(x), 0);
     // The springs' total: foundation stiffness times the back face's area.
@@ -169,55 +171,7 @@ TEST(Reduction, UnstableEigenvaluesConvergeToTheFullModelsAsTheCutOffGrows)
   EXPECT_LT(prev, 1e-3); // 6 x the band
 }
 
-TEST(Reduction, DistributedReductionMatchesTheSerialOne)
-{
-  // On one rank both are serial; under mpiexec -n 2 the first is distributed. Compared through
-  // the interface block A_BB x_B for a fixed x_B, for M, C and K (the modal blocks depend on the
-  // basis chosen inside near-degenerate eigenspaces; the reduced eigenvalues agree to 1e-8).
-  PadParams p = SmallPad();
-  Model     full(PETSC_COMM_WORLD), full1(PETSC_COMM_SELF), red(PETSC_COMM_WORLD), red1(PETSC_COMM_SELF);
-  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
-  ASSERT_EQ(BuildPad(PETSC_COMM_SELF, p, full1), 0);
-  ASSERT_EQ(Reduce(full, 30000, red), 0);
-  ASSERT_EQ(Reduce(full1, 30000, red1), 0);
-  ASSERT_EQ(red.Size(), red1.Size());
-  const PetscInt nB = 3 * full.contacts.Size();
-  auto apply = [nB](Mat A, std::vector<double> &out) {
-    Vec x, y, all;
-    VecScatter sc;
-    PetscInt   lo, hi, n;
-    PetscCallAbort(PETSC_COMM_WORLD, MatCreateVecs(A, &x, &y));
-    PetscCallAbort(PETSC_COMM_WORLD, VecGetOwnershipRange(x, &lo, &hi));
-    PetscCallAbort(PETSC_COMM_WORLD, VecSet(x, 0.0));
-    for (PetscInt i = lo; i < PetscMin(hi, nB); ++i) PetscCallAbort(PETSC_COMM_WORLD, VecSetValue(x, i, 1.0 + 0.01 * i, INSERT_VALUES));
-    PetscCallAbort(PETSC_COMM_WORLD, VecAssemblyBegin(x));
-    PetscCallAbort(PETSC_COMM_WORLD, VecAssemblyEnd(x));
-    PetscCallAbort(PETSC_COMM_WORLD, MatMult(A, x, y));
-    PetscCallAbort(PETSC_COMM_WORLD, VecScatterCreateToAll(y, &sc, &all));
-    PetscCallAbort(PETSC_COMM_WORLD, VecScatterBegin(sc, y, all, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCallAbort(PETSC_COMM_WORLD, VecScatterEnd(sc, y, all, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCallAbort(PETSC_COMM_WORLD, VecGetSize(all, &n));
-    const PetscScalar *a;
-    PetscCallAbort(PETSC_COMM_WORLD, VecGetArrayRead(all, &a));
-    out.assign(a, a + PetscMin(n, nB));
-    PetscCallAbort(PETSC_COMM_WORLD, VecRestoreArrayRead(all, &a));
-    VecScatterDestroy(&sc), VecDestroy(&all), VecDestroy(&x), VecDestroy(&y);
-  };
-  for (auto pair : {std::make_pair((Mat)red.M, (Mat)red1.M), std::make_pair((Mat)red.K, (Mat)red1.K),
-                    std::make_pair((Mat)red.C, (Mat)red1.C)}) {
-    std::vector<double> a, b;
-    apply(pair.first, a);
-    apply(pair.second, b);
-    ASSERT_EQ(a.size(), b.size());
-    double scale = 0, diff = 0;
-    for (size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), diff = std::max(diff, std::abs(a[i] - b[i]));
-    EXPECT_LT(diff, 1e-9 * scale);
-  }
-  PetscReal f, f1;
-  ASSERT_EQ(VecNorm(red.F, NORM_2, &f), 0);
-  ASSERT_EQ(VecNorm(red1.F, NORM_2, &f1), 0);
-  EXPECT_NEAR(f, f1, 1e-12 * f1);
-}
+namespace {
 
 // A x for x = (1 + 0.01 i) on the first nB (interface) DOFs, 0 elsewhere, the first nB entries on
 // every rank: the interface block of a reduced matrix, which depends on the constraint modes only.
@@ -243,6 +197,35 @@ std::vector<double> InterfaceBlockTimes(Mat A, PetscInt nB)
   PetscCallAbort(PETSC_COMM_WORLD, VecRestoreArrayRead(all, &a));
   VecScatterDestroy(&sc), VecDestroy(&all), VecDestroy(&x), VecDestroy(&y);
   return out;
+}
+
+} // namespace
+
+TEST(Reduction, DistributedReductionMatchesTheSerialOne)
+{
+  // On one rank both are serial; under mpiexec -n 2 the first is distributed. Compared through
+  // the interface block A_BB x_B for a fixed x_B, for M, C and K (the modal blocks depend on the
+  // basis chosen inside near-degenerate eigenspaces; the reduced eigenvalues agree to 1e-8).
+  PadParams p = SmallPad();
+  Model     full(PETSC_COMM_WORLD), full1(PETSC_COMM_SELF), red(PETSC_COMM_WORLD), red1(PETSC_COMM_SELF);
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  ASSERT_EQ(BuildPad(PETSC_COMM_SELF, p, full1), 0);
+  ASSERT_EQ(Reduce(full, 30000, red), 0);
+  ASSERT_EQ(Reduce(full1, 30000, red1), 0);
+  ASSERT_EQ(red.Size(), red1.Size());
+  const PetscInt nB = 3 * full.contacts.Size();
+  for (auto pair : {std::make_pair((Mat)red.M, (Mat)red1.M), std::make_pair((Mat)red.K, (Mat)red1.K),
+                    std::make_pair((Mat)red.C, (Mat)red1.C)}) {
+    const std::vector<double> a = InterfaceBlockTimes(pair.first, nB), b = InterfaceBlockTimes(pair.second, nB);
+    ASSERT_EQ(a.size(), b.size());
+    double scale = 0, diff = 0;
+    for (size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), diff = std::max(diff, std::abs(a[i] - b[i]));
+    EXPECT_LT(diff, 1e-9 * scale);
+  }
+  PetscReal f, f1;
+  ASSERT_EQ(VecNorm(red.F, NORM_2, &f), 0);
+  ASSERT_EQ(VecNorm(red1.F, NORM_2, &f1), 0);
+  EXPECT_NEAR(f, f1, 1e-12 * f1);
 }
 
 TEST(Reduction, RedundantAndDistributedFactorsGiveTheSameReducedModel)
@@ -319,7 +302,9 @@ TEST(Reduction, RayleighShortcutEqualsTheProjectionOfC)
   PetscInt lo, hi;
   ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, other), 0);
   ASSERT_EQ(MatGetOwnershipRange(other.C, &lo, &hi), 0);
-  if (lo == 0) ASSERT_EQ(MatSetValue(other.C, 0, 0, 1e-3, ADD_VALUES), 0);
+  if (lo == 0) {
+    ASSERT_EQ(MatSetValue(other.C, 0, 0, 1e-3, ADD_VALUES), 0);
+  }
   ASSERT_EQ(MatAssemblyBegin(other.C, MAT_FINAL_ASSEMBLY), 0);
   ASSERT_EQ(MatAssemblyEnd(other.C, MAT_FINAL_ASSEMBLY), 0);
   Model         c;

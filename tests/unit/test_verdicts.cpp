@@ -185,7 +185,9 @@ TEST(Verdicts, RecordsOverBudgetAreThinnedOrRefused)
   });
   ASSERT_EQ(r.ierr, 0);
   EXPECT_GT(r.res.keep_every, 1);
-  if (Rank0()) EXPECT_LE(r.res.t.size() * TransientAnalysis::RecordBytes(r.res.N, r.res.nc), budget * 1048576.0);
+  if (Rank0()) {
+    EXPECT_LE(r.res.t.size() * TransientAnalysis::RecordBytes(r.res.N, r.res.nc), budget * 1048576.0);
+  }
   Run3 r2;
   Transient(r2, p, [&](TransientAnalysis &ta) {
     ta.periods        = 20;
@@ -291,14 +293,17 @@ TEST(Verdicts, SweepTracksOneModeAcrossMu)
   auto         at   = [&](size_t i, PetscInt s, int c) { return r.eigenvalues[((i * r.k) + s) * 2 + c]; };
   const PetscInt sl = at(n - 1, 0, 0) > at(n - 1, 1, 0) ? 0 : 1;
   for (size_t i = 0; i < n; ++i) {
-    if (r.mu[i] > 0.143068 + 1e-3) EXPECT_GT(at(i, sl, 0), 0) << "mu = " << r.mu[i];
+    if (r.mu[i] > 0.143068 + 1e-3) {
+      EXPECT_GT(at(i, sl, 0), 0) << "mu = " << r.mu[i];
+    }
     if (r.mu[i] < 0.143068 - 1e-3) {
       EXPECT_LT(at(i, sl, 0), 0) << "mu = " << r.mu[i];
     }
-    if (i > 0)
+    if (i > 0) {
       EXPECT_LT(std::hypot(at(i, sl, 0) - at(i - 1, sl, 0), at(i, sl, 1) - at(i - 1, sl, 1)),
                 std::hypot(at(i, 0, 0) - at(i, 1, 0), at(i, 0, 1) - at(i, 1, 1)) + 5.0)
           << "mu = " << r.mu[i];
+    }
   }
   EXPECT_EQ(r.critical_certified[0], 1);
   for (PetscInt c : r.covered) EXPECT_EQ(c, 1);
