@@ -199,6 +199,18 @@ std::vector<double> InterfaceBlockTimes(Mat A, PetscInt nB)
   return out;
 }
 
+// The interface blocks of M, K and C of two reductions of one model agree to 1e-9 of the largest entry.
+void ExpectSameInterfaceBlocks(const Model &x, const Model &y, PetscInt nB, const char *what)
+{
+  for (auto pair : {std::make_pair((Mat)x.M, (Mat)y.M), std::make_pair((Mat)x.K, (Mat)y.K), std::make_pair((Mat)x.C, (Mat)y.C)}) {
+    const std::vector<double> a = InterfaceBlockTimes(pair.first, nB), b = InterfaceBlockTimes(pair.second, nB);
+    ASSERT_EQ(a.size(), b.size());
+    double scale = 0, diff = 0;
+    for (size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), diff = std::max(diff, std::abs(a[i] - b[i]));
+    EXPECT_LT(diff, 1e-9 * scale) << what;
+  }
+}
+
 } // namespace
 
 TEST(Reduction, DistributedReductionMatchesTheSerialOne)
@@ -214,14 +226,7 @@ TEST(Reduction, DistributedReductionMatchesTheSerialOne)
   ASSERT_EQ(Reduce(full1, 30000, red1), 0);
   ASSERT_EQ(red.Size(), red1.Size());
   const PetscInt nB = 3 * full.contacts.Size();
-  for (auto pair : {std::make_pair((Mat)red.M, (Mat)red1.M), std::make_pair((Mat)red.K, (Mat)red1.K),
-                    std::make_pair((Mat)red.C, (Mat)red1.C)}) {
-    const std::vector<double> a = InterfaceBlockTimes(pair.first, nB), b = InterfaceBlockTimes(pair.second, nB);
-    ASSERT_EQ(a.size(), b.size());
-    double scale = 0, diff = 0;
-    for (size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), diff = std::max(diff, std::abs(a[i] - b[i]));
-    EXPECT_LT(diff, 1e-9 * scale);
-  }
+  ExpectSameInterfaceBlocks(red, red1, nB, "distributed against serial");
   PetscReal f, f1;
   ASSERT_EQ(VecNorm(red.F, NORM_2, &f), 0);
   ASSERT_EQ(VecNorm(red1.F, NORM_2, &f1), 0);
@@ -249,14 +254,7 @@ TEST(Reduction, RedundantAndDistributedFactorsGiveTheSameReducedModel)
     ASSERT_EQ(cb.SetRedundantFactor(redundant), 0);
     ASSERT_EQ(cb.Reduce(full, red), 0);
     ASSERT_EQ(red.Size(), red1.Size());
-    for (auto pair : {std::make_pair((Mat)red.M, (Mat)red1.M), std::make_pair((Mat)red.K, (Mat)red1.K),
-                      std::make_pair((Mat)red.C, (Mat)red1.C)}) {
-      const std::vector<double> a = InterfaceBlockTimes(pair.first, nB), b = InterfaceBlockTimes(pair.second, nB);
-      ASSERT_EQ(a.size(), b.size());
-      double scale = 0, diff = 0;
-      for (size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), diff = std::max(diff, std::abs(a[i] - b[i]));
-      EXPECT_LT(diff, 1e-9 * scale) << (redundant ? "redundant" : "distributed");
-    }
+    ExpectSameInterfaceBlocks(red, red1, nB, redundant ? "redundant" : "distributed");
     ASSERT_EQ(cb.Info().freq.size(), info1.freq.size());
     for (size_t k = 0; k < info1.freq.size(); ++k) EXPECT_NEAR(cb.Info().freq[k], info1.freq[k], 1e-9 * info1.freq[k]);
   }
