@@ -491,7 +491,6 @@ PetscErrorCode VecLoadFromFile(MPI_Comm comm, const char *path, Vec *v)
   std::vector<PetscReal> x;
   PetscBool              found;
   PetscMPIInt            here, everywhere;
-  PetscInt               rstart, rend;
   PetscFunctionBeginUser;
   PetscCall(PetscTestFile(path, 'r', &found));
   here = found ? 1 : 0;
@@ -503,6 +502,14 @@ PetscErrorCode VecLoadFromFile(MPI_Comm comm, const char *path, Vec *v)
   else PetscCall(ReadBinaryVector(comm, path, x));
   for (size_t i = 0; i < x.size(); ++i)
     PetscCheck(std::isfinite(x[i]), comm, PETSC_ERR_FILE_UNEXPECTED, "load vector file '%s': entry %zu is NaN or infinite", path, i);
+  PetscCall(VecCreateFromValues(comm, x, v));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode VecCreateFromValues(MPI_Comm comm, const std::vector<PetscReal> &x, Vec *v)
+{
+  PetscInt rstart, rend;
+  PetscFunctionBeginUser;
   PetscCall(VecCreateMPI(comm, PETSC_DECIDE, (PetscInt)x.size(), v));
   PetscCall(VecGetOwnershipRange(*v, &rstart, &rend));
   for (PetscInt i = rstart; i < rend; ++i) PetscCall(VecSetValue(*v, i, x[i], INSERT_VALUES));

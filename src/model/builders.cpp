@@ -19,18 +19,6 @@ namespace {
 
 constexpr PetscReal kDeg = PETSC_PI / 180.0;
 
-PetscErrorCode CreateVecFromDense(MPI_Comm comm, const std::vector<PetscReal> &x, Vec *v)
-{
-  PetscInt rstart, rend;
-  PetscFunctionBeginUser;
-  PetscCall(VecCreateMPI(comm, PETSC_DECIDE, (PetscInt)x.size(), v));
-  PetscCall(VecGetOwnershipRange(*v, &rstart, &rend));
-  for (PetscInt i = rstart; i < rend; ++i) PetscCall(VecSetValue(*v, i, x[i], INSERT_VALUES));
-  PetscCall(VecAssemblyBegin(*v));
-  PetscCall(VecAssemblyEnd(*v));
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode CreateDiagonal(MPI_Comm comm, PetscInt N, PetscReal value, Mat *A)
 {
   Triplets t;
@@ -91,7 +79,7 @@ PetscErrorCode BuildThreeDof(MPI_Comm comm, const ThreeDofParams &p, Model &mode
   PetscCall(CreateDiagonal(comm, 3, p.m, model.M.out()));
   if (p.c > 0) PetscCall(CreateDiagonal(comm, 3, p.c, model.C.out()));
   else model.C.reset();
-  PetscCall(CreateVecFromDense(comm, {0, 0, -p.Fn}, model.F.out()));
+  PetscCall(io::VecCreateFromValues(comm, {0, 0, -p.Fn}, model.F.out()));
 
   ContactPoint pt;
   pt.nodes = {ContactNode{{0, 1, 2}, 1.0}};
@@ -149,7 +137,7 @@ PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model)
   PetscCall(CreateDiagonal(comm, N, p.cell.m, model.M.out()));
   if (p.cell.c > 0) PetscCall(CreateDiagonal(comm, N, p.cell.c, model.C.out()));
   else model.C.reset();
-  PetscCall(CreateVecFromDense(comm, F, model.F.out()));
+  PetscCall(io::VecCreateFromValues(comm, F, model.F.out()));
   model.contacts.law = p.cell.law;
   model.contacts.mu  = p.cell.mu;
   model.contacts.V   = p.cell.V;

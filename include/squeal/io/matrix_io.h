@@ -7,6 +7,8 @@
 #include <petscmat.h>
 #include <petscviewer.h>
 
+#include <vector>
+
 namespace squeal::io {
 
 // Reads "%%MatrixMarket matrix coordinate real|integer general|symmetric" or
@@ -32,6 +34,9 @@ PetscErrorCode MatSaveToFile(Mat A, const char *path);
 // a truncated file is named, not read past its end). Every rank reads the file; the Vec is
 // distributed with PETSC_DECIDE. Every failure names the file and the accepted formats.
 PetscErrorCode VecLoadFromFile(MPI_Comm comm, const char *path, Vec *v);
+
+// A Vec on comm (PETSC_DECIDE layout) holding x, which every rank passes whole.
+PetscErrorCode VecCreateFromValues(MPI_Comm comm, const std::vector<PetscReal> &x, Vec *v);
 
 // A PETSc binary viewer that neither writes nor reads the ".info" side file.
 PetscErrorCode OpenBinaryViewer(MPI_Comm comm, const char *path, PetscFileMode mode, PetscViewer *viewer);
