@@ -371,6 +371,9 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(MatGetOwnershipRange(full.K, &rstart, &rend));
 
   // Interface in contact order: point c, its nodes, their x, y, z DOFs.
+  PetscCheck(!full.contacts.HasExplicitColumns(), comm, kErrInput,
+             "reduction: the contact set has explicit column entries (an already reduced model?); Craig-Bampton needs "
+             "node-based contact points, reduce the full model instead");
   std::vector<PetscInt> iface;
   for (const ContactPoint &p : full.contacts.points)
     for (const ContactNode &nd : p.nodes)

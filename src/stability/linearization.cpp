@@ -9,14 +9,11 @@ namespace squeal {
 
 namespace {
 
-// Nonzero entries of one local direction column of point c: DOF -> weight * e_k.
+// Nonzero entries of one local direction column of point c: DOF -> value.
 std::map<PetscInt, PetscReal> Column(const ContactSet &cs, PetscInt c, int dir)
 {
   std::map<PetscInt, PetscReal> col;
-  const Eigen::Vector3d        &e = cs.Axis(c, dir);
-  for (const ContactNode &nd : cs.points[c].nodes)
-    for (int k = 0; k < 3; ++k)
-      if (e[k] != 0) col[nd.dofs[k]] += nd.weight * e[k];
+  cs.ForEachEntry(c, dir, [&](PetscInt j, PetscReal v) { col[j] += v; });
   for (auto it = col.begin(); it != col.end();) it = (it->second == 0) ? col.erase(it) : std::next(it);
   return col;
 }
