@@ -1,5 +1,7 @@
-// Contact points given by explicit columns of H. References: hand-made contact sets that break
-// one rule each, and the same set written and read back.
+// Contact points given by explicit columns of H, and the interface reduction of a Craig-Bampton
+// model (craig_bampton.h). References: the full model's unstable eigenvalues (the error must fall
+// as the in-plane basis grows), the plain Craig-Bampton model (k = 2 n_c is an exact change of
+// basis), the same model written and read back, and hand-made contact sets that break one rule each.
 #include "squeal/model/builders.h"
 #include "squeal/model/pad.h"
 #include "squeal/reduction/craig_bampton.h"
@@ -20,6 +22,60 @@ using namespace squeal;
 
 namespace {
 
+PadParams SmallPad()
+{
+  PadParams p;
+  p.n_r = 3, p.n_t = 12, p.n_fric = 1, p.n_steel = 1;
+  p.mu = 0.3, p.V = 10;
+  return p;
+}
+
+// Unstable eigenvalues (sigma + i omega) of a model, most unstable first.
+std::vector<std::complex<double>> Unstable(Model &model, PetscInt nev = 12)
+{
+  EquilibriumSolver                 eqs(model.comm());
+  StabilitySolver                   stab(model.comm());
+  SlidingEquilibrium                eq;
+  StabilityResult                   res;
+  std::vector<std::complex<double>> out;
+  EXPECT_EQ(PetscOptionsSetValue(nullptr, "-eq_mat_mumps_icntl_14", "200"), 0);
+  EXPECT_EQ(eqs.SetFromOptions(), 0);
+  EXPECT_EQ(PetscOptionsSetValue(nullptr, "-stab_pep_nev", std::to_string(nev).c_str()), 0);
+  EXPECT_EQ(stab.SetFromOptions(), 0);
+  EXPECT_EQ(PetscOptionsClearValue(nullptr, "-stab_pep_nev"), 0);
+  const bool failed = eqs.Solve(model, eq) || stab.Solve(model, eq, res);
+  EXPECT_EQ(PetscOptionsClearValue(nullptr, "-eq_mat_mumps_icntl_14"), 0);
+  if (failed) {
+    ADD_FAILURE() << "equilibrium or stability failed";
+    return out;
+  }
+  for (PetscInt i : res.unstable) out.emplace_back(res.modes[i].sigma, res.modes[i].omega);
+  return out;
+}
+
+// Largest relative distance from each reference eigenvalue to the nearest one of `got`.
+double MaxRelError(const std::vector<std::complex<double>> &ref, const std::vector<std::complex<double>> &got)
+{
+  double worst = 0;
+  for (auto r : ref) {
+    double best = 1e300;
+    for (auto g : got) best = std::min(best, std::abs(g - r) / std::abs(r));
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+PetscErrorCode Reduce(const Model &full, PetscReal fmax, PetscInt k, Model &red, ReductionInfo *info = nullptr)
+{
+  CraigBampton cb(full.comm());
+  PetscFunctionBeginUser;
+  PetscCall(cb.SetFMax(fmax));
+  PetscCall(cb.SetInterfaceModes(k));
+  PetscCall(cb.Reduce(full, red));
+  if (info) *info = cb.Info();
+  PetscFunctionReturn(0);
+}
+
 // Runs f with PETSc errors returned instead of printed; the error code.
 template <class F>
 PetscErrorCode Quietly(F &&f)
@@ -31,6 +87,124 @@ PetscErrorCode Quietly(F &&f)
 }
 
 } // namespace
+
+TEST(InterfaceReduction, WholeInPlaneBasisIsAnExactChangeOfBasis)
+{
+  // k = 2 n_c keeps every in-plane DOF: the reduced model is the plain CB model in rotated,
+  // M-orthonormalised interface coordinates, so its eigenvalues are the same to round-off.
+  PadParams p = SmallPad();
+  Model     full, cb, ir;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  const PetscInt nc = full.contacts.Size();
+  ReductionInfo  info;
+  ASSERT_EQ(Reduce(full, 30000, -1, cb), 0);
+  ASSERT_EQ(Reduce(full, 30000, 2 * nc, ir, &info), 0);
+  EXPECT_EQ(info.n_normal, nc);
+  EXPECT_EQ(info.n_inplane_modes, 2 * nc);
+  EXPECT_EQ(ir.Size(), cb.Size());
+  EXPECT_TRUE(ir.contacts.HasExplicitColumns());
+  EXPECT_NE(ir.name.find("IR("), std::string::npos);
+  const auto a = Unstable(cb), b = Unstable(ir);
+  ASSERT_FALSE(a.empty());
+  EXPECT_EQ(a.size(), b.size());
+  EXPECT_LT(MaxRelError(a, b), 1e-9);
+  EXPECT_LT(MaxRelError(b, a), 1e-9);
+}
+
+TEST(InterfaceReduction, UnstableEigenvaluesConvergeToTheFullModelsAsTheInPlaneBasisGrows)
+{
+  PetscMPIInt size;
+  ASSERT_EQ(MPI_Comm_size(PETSC_COMM_WORLD, &size), 0);
+  if (size > 1) GTEST_SKIP() << "serial numerics (6 stability solves); the distributed reduction is checked by Reduction.*";
+  PadParams p = SmallPad();
+  Model     full;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  const PetscInt nc = full.contacts.Size();
+  // The band: the full model's unstable eigenvalues below 10 kHz (4 of its 12, 4.19-9.71 kHz).
+  // Like the CB cut-off, the in-plane modes kept must reach well above it: k = n_c keeps them to
+  // 14.5 kHz, k = 3 n_c / 2 to 17.1 kHz (the whole basis reaches 29 kHz).
+  std::vector<std::complex<double>> ref;
+  for (auto r : Unstable(full))
+    if (r.imag() < 2 * PETSC_PI * 10000) ref.push_back(r);
+  ASSERT_GE(ref.size(), 3u);
+  Model cb;
+  ASSERT_EQ(Reduce(full, 30000, -1, cb), 0);
+  const double        cb_err = MaxRelError(ref, Unstable(cb));
+  std::vector<double> errs;
+  for (PetscInt k : {nc / 2, nc, 3 * nc / 2, 2 * nc}) {
+    Model         red;
+    ReductionInfo info;
+    ASSERT_EQ(Reduce(full, 30000, k, red, &info), 0);
+    EXPECT_EQ(red.Size(), cb.Size() - 2 * nc + k);
+    errs.push_back(MaxRelError(ref, Unstable(red)));
+    std::printf("interface modes k = %3d of %3d (to %7.1f Hz): reduced N = %3d, max rel. error of the %zu unstable eigenvalues "
+                "below 10 kHz %.3e (CB alone %.3e)\n",
+                (int)k, (int)(2 * nc), (double)info.inplane_freq.back(), (int)red.Size(), ref.size(), errs.back(), cb_err);
+  }
+  for (size_t i = 1; i < errs.size(); ++i) EXPECT_LT(errs[i], errs[i - 1]) << "k step " << i;
+  EXPECT_LT(errs.back(), 1.001 * cb_err + 1e-9); // k = 2 n_c: CB's own error
+  EXPECT_LT(errs[1], 1e-2);                      // k = n_c: half the in-plane DOFs
+  EXPECT_LT(errs[2], 3e-3);                      // k = 3 n_c / 2
+}
+
+TEST(InterfaceReduction, ExportedModelReadsBackIdentically)
+{
+  PadParams p = SmallPad();
+  Model     full, red, back;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  ASSERT_EQ(Reduce(full, 30000, full.contacts.Size(), red), 0);
+  int pid = (int)getpid();
+  MPI_Bcast(&pid, 1, MPI_INT, 0, PETSC_COMM_WORLD);
+  const std::string dir = "test_interface_reduction_export_" + std::to_string(pid);
+  ASSERT_EQ(red.Export(dir.c_str(), "bin"), 0);
+  FileModelSpec s;
+  s.mass = dir + "/M.bin", s.stiffness = dir + "/K.bin", s.damping = dir + "/C.bin", s.load = dir + "/F.bin";
+  s.contacts = dir + "/contacts.txt", s.mu = p.mu, s.V = p.V;
+  ASSERT_EQ(BuildFromFiles(PETSC_COMM_WORLD, s, back), 0);
+  ASSERT_EQ(back.Size(), red.Size());
+  ASSERT_EQ(back.contacts.Size(), red.contacts.Size());
+  for (PetscInt c = 0; c < red.contacts.Size(); ++c)
+    for (int d = 0; d < 3; ++d) {
+      const ColumnEntries &x = red.contacts.points[c].cols[d], &y = back.contacts.points[c].cols[d];
+      ASSERT_EQ(x.size(), y.size());
+      for (size_t e = 0; e < x.size(); ++e) {
+        EXPECT_EQ(x[e].first, y[e].first);
+        EXPECT_EQ(x[e].second, y[e].second); // 17 digits
+      }
+    }
+  const auto a = Unstable(red), b = Unstable(back);
+  ASSERT_FALSE(a.empty());
+  EXPECT_LT(MaxRelError(a, b), 1e-10);
+  MPI_Barrier(PETSC_COMM_WORLD);
+  int rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0) std::filesystem::remove_all(dir);
+}
+
+TEST(InterfaceReduction, BadCountsAreRefused)
+{
+  PadParams p = SmallPad();
+  Model     full;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  const PetscInt nc = full.contacts.Size();
+  for (PetscInt k : {(PetscInt)0, 2 * nc + 1}) {
+    Model red;
+    EXPECT_NE(Quietly([&] { return Reduce(full, 30000, k, red); }), 0) << "k = " << k;
+  }
+  {
+    Model        red;
+    CraigBampton cb(full.comm());
+    ASSERT_EQ(cb.SetFMax(30000), 0);
+    ASSERT_EQ(cb.SetInterfaceFMax(1.0), 0); // 1 Hz: below the lowest in-plane mode
+    EXPECT_NE(Quietly([&] { return cb.Reduce(full, red); }), 0);
+  }
+  {
+    // Reducing an interface-reduced model again: its points have no nodes.
+    Model red, again;
+    ASSERT_EQ(Reduce(full, 30000, nc, red), 0);
+    EXPECT_NE(Quietly([&] { return Reduce(red, 30000, -1, again); }), 0);
+  }
+}
 
 namespace {
 
