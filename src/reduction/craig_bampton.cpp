@@ -404,6 +404,9 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                "option %sinterface_modes = %" PetscInt_FMT ": expected >= 1 (or -1, the default: no interface reduction)", pre.c_str(),
                iface_modes_);
   }
+  PetscCheck(type == 1 || (iface_modes_ < 0 && iface_fmax_ <= 0), comm_, kErrInput,
+             "%sinterface_modes / %sinterface_fmax reduce the interface of a Craig-Bampton model: add %stype craig_bampton",
+             pre.c_str(), pre.c_str(), pre.c_str());
   if (enabled) *enabled = type == 1;
   PetscFunctionReturn(0);
 }
