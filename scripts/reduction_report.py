@@ -11,6 +11,9 @@ model (each matched to the nearest reduced eigenvalue).
   31119-DOF pad (full stability run ~3 min; keep its results file and pass it with --full-h5):
   /usr/bin/python3 scripts/reduction_report.py --scene examples/pad/pad_large.yaml --band 10000 \
       --fmax 10000 20000 30000 [--full-h5 full.h5]
+  With interface reduction (-reduce_interface_modes k; -1: none) for each cut-off:
+  /usr/bin/python3 scripts/reduction_report.py --scene examples/pad/pad.yaml --band 10000 \
+      --fmax 20000 --interface-modes -1 100 200 300 350
 """
 import argparse
 import os
@@ -52,6 +55,8 @@ def main():
     ap.add_argument("--np", type=int, default=1)
     ap.add_argument("--full-np", type=int, default=1)
     ap.add_argument("--full-h5", default="", help="reuse this results file of the full model's stability run (skips that run)")
+    ap.add_argument("--interface-modes", type=int, nargs="+", default=[-1],
+                    help="in-plane interface modes kept (-reduce_interface_modes; -1: no interface reduction)")
     ap.add_argument("--extra", nargs=argparse.REMAINDER, default=[])
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="reduction_report_")
@@ -68,16 +73,21 @@ def main():
     print("full model: %s DOFs, %d unstable eigenvalue(s), stability run %.2f s (wall, %d rank(s))" % (n, len(ref), wall, a.full_np))
     for l in ref:
         print("  sigma = %.6g 1/s, f = %.6g Hz" % (l.real, l.imag / (2 * np.pi)))
-    print("%9s %7s %6s %10s %10s %12s %12s" % ("fmax(Hz)", "N_red", "modes", "reduce(s)", "run(s)", "max rel err", "max |dsig|/|l|"))
+    print("%9s %7s %6s %7s %10s %10s %12s %12s %8s" % ("fmax(Hz)", "N_red", "modes", "k_iface", "reduce(s)", "run(s)", "max rel err",
+                                                      "max |dsig|/|l|", "unstable"))
     for fm in a.fmax:
-        h5 = os.path.join(tmp, "red_%g.h5" % fm)
-        out, wall = run(base + ["-reduce_type", "craig_bampton", "-reduce_fmax", str(fm), "-output", h5], a.np)
-        m = re.search(r"-> (\d+) \((\d+) interface DOFs of the contact nodes \+ (\d+) fixed-interface", out)
-        t = re.search(r"time ([0-9.]+) s", out)
-        lam, _ = unstable(h5)
-        err = [np.min(np.abs(lam - r)) / abs(r) for r in ref]
-        dsig = [abs(lam[np.argmin(np.abs(lam - r))].real - r.real) / abs(r) for r in ref]
-        print("%9g %7s %6s %10s %10.2f %12.3e %12.3e" % (fm, m.group(1), m.group(3), t.group(1), wall, max(err), max(dsig)))
+        for k in a.interface_modes:
+            h5 = os.path.join(tmp, "red_%g_%d.h5" % (fm, k))
+            out, wall = run(base + ["-reduce_type", "craig_bampton", "-reduce_fmax", str(fm), "-reduce_interface_modes", str(k),
+                                    "-output", h5], a.np)
+            m = re.search(r"-> (\d+) \((\d+) interface DOFs of the contact nodes \+ (\d+) fixed-interface", out)
+            mi = re.search(r"in-plane characteristic constraint modes \(.*\): (\d+) DOFs", out)
+            t = re.search(r"time ([0-9.]+) s", out)
+            lam, unst = unstable(h5)
+            err = [np.min(np.abs(lam - r)) / abs(r) for r in ref]
+            dsig = [abs(lam[np.argmin(np.abs(lam - r))].real - r.real) / abs(r) for r in ref]
+            print("%9g %7s %6s %7s %10s %10.2f %12.3e %12.3e %8d" % (fm, mi.group(1) if mi else m.group(1), m.group(3), k if k >= 0 else "-",
+                                                            t.group(1), wall, max(err), max(dsig), len(unst)))
 
 
 if __name__ == "__main__":

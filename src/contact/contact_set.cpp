@@ -3,11 +3,20 @@
 #include "squeal/core/sparse.h"
 
 #include <cmath>
+#include <algorithm>
 #include <map>
 
 namespace squeal {
 
 const char *FrictionLawName(FrictionLaw law) { return law == FrictionLaw::Planar ? "planar" : "rectilinear"; }
+
+bool ContactSet::HasExplicitColumns() const
+{
+  for (const ContactPoint &p : points)
+    for (const ColumnEntries &col : p.cols)
+      if (!col.empty()) return true;
+  return false;
+}
 
 PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
 {
@@ -17,7 +26,7 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
   PetscCheck(!PetscIsInfOrNanReal(V) && V > 0, comm, kErrInput, "sliding speed V = %g: expected > 0", (double)V);
   for (PetscInt c = 0; c < Size(); ++c) {
     ContactPoint &p = points[c];
-    PetscCheck(!p.nodes.empty(), comm, kErrInput, "contact %" PetscInt_FMT " has no node", c);
+    PetscCheck(!p.nodes.empty() || !p.cols[kN].empty(), comm, kErrInput, "contact %" PetscInt_FMT " has no node and no normal column", c);
     for (const ContactNode &nd : p.nodes) {
       PetscCheck(!PetscIsInfOrNanReal(nd.weight) && nd.weight != 0, comm, kErrInput,
                  "contact %" PetscInt_FMT ": node weight %g must be finite and non-zero", c, (double)nd.weight);
@@ -35,6 +44,20 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
         owner[d] = c;
       }
     }
+    for (int dir = 0; dir < 3; ++dir) {
+      std::vector<PetscInt> seen;
+      for (const auto &en : p.cols[dir]) {
+        PetscCheck(en.first >= 0 && en.first < N, comm, kErrInput,
+                   "contact %" PetscInt_FMT ": column %c entry at DOF %" PetscInt_FMT " out of range [0, %" PetscInt_FMT ")", c,
+                   "tbn"[dir], en.first, N);
+        PetscCheck(!PetscIsInfOrNanReal(en.second), comm, kErrInput,
+                   "contact %" PetscInt_FMT ": column %c entry at DOF %" PetscInt_FMT " is not finite", c, "tbn"[dir], en.first);
+        seen.push_back(en.first);
+      }
+      std::sort(seen.begin(), seen.end());
+      PetscCheck(std::adjacent_find(seen.begin(), seen.end()) == seen.end(), comm, kErrInput,
+                 "contact %" PetscInt_FMT ": column %c lists a DOF twice; give each DOF one entry", c, "tbn"[dir]);
+    }
     PetscCheck(p.t.allFinite() && p.n.allFinite(), comm, kErrInput, "contact %" PetscInt_FMT ": frame is not finite", c);
     // Accept frames written with a few digits; reject ones that are plainly wrong.
     PetscCheck(std::abs(p.t.norm() - 1) < 1e-6 && std::abs(p.n.norm() - 1) < 1e-6, comm, kErrInput,
@@ -48,6 +71,45 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
                "contact %" PetscInt_FMT ": speed factor %g: expected > 0", c, (double)p.speed_factor);
     PetscCheck(!PetscIsInfOrNanReal(p.g0), comm, kErrInput, "contact %" PetscInt_FMT ": initial gap is not finite", c);
   }
+  if (HasExplicitColumns()) {
+    // Nodal points satisfy these by the checks above (distinct DOFs, orthogonal frames); with
+    // explicit entries they are checked: the pivot elimination (Q, L of method.md §4) and the
+    // energy estimate's psi (§7) rely on them.
+    std::map<PetscInt, std::pair<PetscInt, PetscReal>> normal; // DOF -> (point, value of its h_n there)
+    std::vector<PetscReal>                             nn(Size(), 0.0);
+    for (PetscInt c = 0; c < Size(); ++c) {
+      std::map<PetscInt, PetscReal> col;
+      ForEachEntry(c, kN, [&](PetscInt d, PetscReal v) { col[d] += v; });
+      for (const auto &e : col) {
+        if (e.second == 0) continue;
+        auto it = normal.find(e.first);
+        PetscCheck(it == normal.end() || it->second.first == c, comm, kErrInput,
+                   "contacts %" PetscInt_FMT " and %" PetscInt_FMT " both have DOF %" PetscInt_FMT
+                   " in their normal column h_n: the normal constraints must act on distinct DOFs",
+                   it == normal.end() ? c : it->second.first, c, e.first);
+        normal[e.first] = {c, e.second};
+        nn[c] += e.second * e.second;
+      }
+      PetscCheck(nn[c] > 0, comm, kErrInput, "contact %" PetscInt_FMT ": the normal column h_n is zero", c);
+    }
+    for (PetscInt c = 0; c < Size(); ++c)
+      for (int dir : {kT, kB}) {
+        std::map<PetscInt, PetscReal> dots; // point of h_n -> h_n^T h_{dir,c}
+        PetscReal                     hh = 0;
+        std::map<PetscInt, PetscReal> col;
+        ForEachEntry(c, dir, [&](PetscInt d, PetscReal v) { col[d] += v; });
+        for (const auto &e : col) {
+          hh += e.second * e.second;
+          auto it = normal.find(e.first);
+          if (it != normal.end()) dots[it->second.first] += it->second.second * e.second;
+        }
+        for (const auto &d : dots)
+          PetscCheck(std::abs(d.second) <= 1e-10 * std::sqrt(nn[d.first] * hh), comm, kErrInput,
+                     "contact %" PetscInt_FMT ": column %c is not orthogonal to the normal column of contact %" PetscInt_FMT
+                     " (h_n^T h = %g); the linearisation needs H_n^T H_t = H_n^T H_b = 0",
+                     c, "tbn"[dir], d.first, (double)d.second);
+      }
+  }
   PetscFunctionReturn(0);
 }
 
@@ -55,11 +117,9 @@ PetscInt ContactSet::PivotDof(PetscInt c) const
 {
   PetscInt  best = -1;
   PetscReal big  = -1;
-  for (const ContactNode &nd : points[c].nodes)
-    for (int k = 0; k < 3; ++k) {
-      const PetscReal a = std::abs(nd.weight * points[c].n[k]);
-      if (a > big) big = a, best = nd.dofs[k];
-    }
+  ForEachEntry(c, kN, [&](PetscInt d, PetscReal v) {
+    if (std::abs(v) > big) big = std::abs(v), best = d;
+  });
   return best;
 }
 
@@ -74,11 +134,9 @@ PetscErrorCode ContactSet::AssembleColumns(Vec like, int dir, const std::vector<
   PetscCall(VecGetLocalSize(like, &nloc));
   PetscCall(VecGetSize(like, &N));
   for (size_t j = 0; j < which.size(); ++j) {
-    const ContactPoint    &p = points[which[j]];
-    const Eigen::Vector3d &e = Axis(which[j], dir);
-    for (const ContactNode &nd : p.nodes)
-      for (int k = 0; k < 3; ++k)
-        if (e[k] != 0 && nd.dofs[k] >= rstart && nd.dofs[k] < rend) t.Add(nd.dofs[k], (PetscInt)j, nd.weight * e[k]);
+    ForEachEntry(which[j], dir, [&](PetscInt d, PetscReal v) {
+      if (d >= rstart && d < rend) t.Add(d, (PetscInt)j, v);
+    });
   }
   PetscCall(MatCreateFromTriplets(comm, nloc, PETSC_DECIDE, N, (PetscInt)which.size(), t, H));
   PetscFunctionReturn(0);
@@ -95,15 +153,11 @@ PetscErrorCode ContactSet::LocalComponents(Vec x, std::vector<PetscReal> &out) c
   PetscCall(VecGetArrayRead(x, &a));
   out.assign(3 * points.size(), 0.0);
   // Each rank adds the part of every dot product it owns; one reduction completes them.
-  for (size_t c = 0; c < points.size(); ++c)
-    for (const ContactNode &nd : points[c].nodes)
-      for (int k = 0; k < 3; ++k)
-        if (nd.dofs[k] >= rstart && nd.dofs[k] < rend) {
-          const PetscReal xv = nd.weight * PetscRealPart(a[nd.dofs[k] - rstart]);
-          out[3 * c + kT] += points[c].t[k] * xv;
-          out[3 * c + kB] += points[c].b[k] * xv;
-          out[3 * c + kN] += points[c].n[k] * xv;
-        }
+  for (PetscInt c = 0; c < Size(); ++c)
+    for (int dir = 0; dir < 3; ++dir)
+      ForEachEntry(c, dir, [&](PetscInt d, PetscReal v) {
+        if (d >= rstart && d < rend) out[3 * c + dir] += v * PetscRealPart(a[d - rstart]);
+      });
   PetscCall(VecRestoreArrayRead(x, &a));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, out.data(), (int)out.size(), MPIU_REAL, MPIU_SUM, comm));
   PetscFunctionReturn(0);
@@ -116,12 +170,14 @@ PetscErrorCode ContactSet::AddForce(const PetscReal *r, Vec R) const
   PetscFunctionBeginUser;
   PetscCall(VecGetOwnershipRange(R, &rstart, &rend));
   PetscCall(VecGetArray(R, &a));
-  for (size_t c = 0; c < points.size(); ++c) {
-    const Eigen::Vector3d f = r[3 * c + kT] * points[c].t + r[3 * c + kB] * points[c].b + r[3 * c + kN] * points[c].n;
-    for (const ContactNode &nd : points[c].nodes)
-      for (int k = 0; k < 3; ++k)
-        if (nd.dofs[k] >= rstart && nd.dofs[k] < rend) a[nd.dofs[k] - rstart] += nd.weight * f[k];
-  }
+  for (PetscInt c = 0; c < Size(); ++c)
+    for (int dir = 0; dir < 3; ++dir) {
+      const PetscReal rc = r[3 * c + dir];
+      if (rc == 0) continue;
+      ForEachEntry(c, dir, [&](PetscInt d, PetscReal v) {
+        if (d >= rstart && d < rend) a[d - rstart] += v * rc;
+      });
+    }
   PetscCall(VecRestoreArray(R, &a));
   PetscFunctionReturn(0);
 }
@@ -138,6 +194,12 @@ PetscErrorCode ContactSet::View(PetscViewer viewer) const
   const PetscInt shown = PetscMin(Size(), 8);
   for (PetscInt c = 0; c < shown; ++c) {
     const ContactPoint &p = points[c];
+    if (p.nodes.empty()) {
+      PetscCall(PetscViewerASCIIPrintf(viewer,
+                                       "point %" PetscInt_FMT ": explicit columns (%zu, %zu, %zu entries in h_t, h_b, h_n), V_c = %g m/s\n", c,
+                                       p.cols[kT].size(), p.cols[kB].size(), p.cols[kN].size(), (double)Speed(c)));
+      continue;
+    }
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "point %" PetscInt_FMT ": DOFs (%" PetscInt_FMT ", %" PetscInt_FMT ", %" PetscInt_FMT
                                      ")%s t = (%.4g, %.4g, %.4g) n = (%.4g, %.4g, %.4g) V_c = %g m/s\n",

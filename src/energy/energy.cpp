@@ -150,8 +150,8 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   speed_.clear();
   est.q_sep = PETSC_INFINITY;
   for (PetscInt c : eq.active) {
-    PetscReal D = 0; // h_n^T h_n
-    for (const ContactNode &nd : cs.points[c].nodes) D += nd.weight * nd.weight * cs.points[c].n.squaredNorm();
+    PetscReal D = 0; // h_n^T h_n (H_n^T H_n is diagonal: ContactSet::Validate)
+    cs.ForEachEntry(c, kN, [&](PetscInt, PetscReal v) { D += v * v; });
     N_.push_back(eq.N[c]);
     psi_.emplace_back(la[3 * c + kN] / D, lb[3 * c + kN] / D);
     phit_.emplace_back(pr[3 * c + kT], pi[3 * c + kT]);

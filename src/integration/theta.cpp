@@ -62,11 +62,9 @@ PetscErrorCode AssembleH(const ContactSet &cs, Vec like, Mat *H)
   PetscCall(VecGetSize(like, &n));
   for (PetscInt c = 0; c < cs.Size(); ++c)
     for (int d = 0; d < 3; ++d)
-      for (const ContactNode &nd : cs.points[c].nodes)
-        for (int k = 0; k < 3; ++k) {
-          const PetscReal v = nd.weight * cs.Axis(c, d)[k];
-          if (v != 0 && nd.dofs[k] >= rstart && nd.dofs[k] < rend) t.Add(nd.dofs[k], 3 * c + d, v);
-        }
+      cs.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) {
+        if (j >= rstart && j < rend) t.Add(j, 3 * c + d, v);
+      });
   PetscCall(MatCreateFromTriplets(comm, rend - rstart, PETSC_DECIDE, n, 3 * cs.Size(), t, H));
   PetscFunctionReturn(0);
 }
@@ -311,9 +309,7 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
              "theta-method: A = M + h theta C + h^2 theta^2 K is not positive definite (h = %g)", (double)h);
   Ht_.setZero(3 * nc_, n_);
   for (PetscInt c = 0; c < nc_; ++c)
-    for (int d = 0; d < 3; ++d)
-      for (const ContactNode &nd : m.contacts.points[c].nodes)
-        for (int k = 0; k < 3; ++k) Ht_(3 * c + d, nd.dofs[k]) += nd.weight * m.contacts.Axis(c, d)[k];
+    for (int d = 0; d < 3; ++d) m.contacts.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) { Ht_(3 * c + d, j) += v; });
   P1_ = llt.solve(B);
   P2_ = -h * llt.solve(Kd_);
   p3_ = h * llt.solve(Fd_);

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 namespace squeal {
@@ -146,6 +147,54 @@ PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model)
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// One "cols" row of a contact table (after the word cols):
+//   tx ty tz  nx ny nz  speed_factor g0  n_t n_b n_n  then n_t + n_b + n_n pairs "dof value"
+// (h_t's entries, then h_b's, then h_n's): a point whose columns of H are given entry by entry.
+PetscErrorCode ReadColumnsRow(MPI_Comm comm, const char *path, int lineno, std::istringstream &ss, ContactSet &set)
+{
+  std::vector<double> v;
+  std::string         tok;
+  PetscFunctionBeginUser;
+  while (ss >> tok) {
+    char  *end = nullptr;
+    double x   = std::strtod(tok.c_str(), &end);
+    PetscCheck(end && *end == '\0', comm, PETSC_ERR_FILE_UNEXPECTED, "contact table '%s', line %d: '%s' is not a number", path,
+               lineno, tok.c_str());
+    v.push_back(x);
+  }
+  PetscCheck(v.size() >= 11, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "contact table '%s', line %d: a cols row needs tx ty tz nx ny nz speed_factor g0 n_t n_b n_n, then the entries", path,
+             lineno);
+  ContactPoint pt;
+  pt.t            = {v[0], v[1], v[2]};
+  pt.n            = {v[3], v[4], v[5]};
+  pt.speed_factor = v[6];
+  pt.g0           = v[7];
+  size_t count[3], total = 0;
+  for (int d = 0; d < 3; ++d) {
+    PetscCheck(v[8 + d] >= 0 && v[8 + d] == std::floor(v[8 + d]), comm, PETSC_ERR_FILE_UNEXPECTED,
+               "contact table '%s', line %d: entry count %g is not a non-negative integer", path, lineno, v[8 + d]);
+    count[d] = (size_t)v[8 + d];
+    total += count[d];
+  }
+  PetscCheck(v.size() == 11 + 2 * total, comm, PETSC_ERR_FILE_UNEXPECTED,
+             "contact table '%s', line %d: %d values after the counts, expected %d (a DOF and a value per entry)", path, lineno,
+             (int)(v.size() - 11), (int)(2 * total));
+  size_t at = 11;
+  for (int d = 0; d < 3; ++d)
+    for (size_t e = 0; e < count[d]; ++e, at += 2) {
+      PetscCheck(v[at] == std::floor(v[at]), comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "contact table '%s', line %d: DOF index %g is not an integer", path, lineno, v[at]);
+      pt.cols[d].emplace_back((PetscInt)v[at], v[at + 1]);
+    }
+  set.points.push_back(pt);
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
 PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set)
 {
   PetscBool exists;
@@ -168,6 +217,14 @@ PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set
     std::istringstream ss(line);
     std::vector<double> v;
     std::string         tok;
+    {
+      std::istringstream cs(line);
+      std::string        first;
+      if (cs >> first && first == "cols") { // a point given by its columns of H
+        PetscCall(ReadColumnsRow(comm, path, lineno, cs, set));
+        continue;
+      }
+    }
     if (set.points.empty() && column.empty()) {
       std::istringstream hs(line);
       std::string        first;
@@ -237,12 +294,26 @@ PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactS
     std::ofstream out(path);
     PetscCheck(out.good(), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "cannot write contact table '%s'", path);
     out << "# squeal contact table: x y z  tx ty tz  nx ny nz  speed_factor g0\n";
+    if (set.HasExplicitColumns()) out << "# or: cols  tx ty tz  nx ny nz  speed_factor g0  n_t n_b n_n  (dof value) per entry of h_t, h_b, h_n\n";
     out.precision(17);
-    for (const ContactPoint &p : set.points) {
-      PetscCheck(p.nodes.size() == 1, PETSC_COMM_SELF, PETSC_ERR_SUP, "the text contact table holds one node per point");
-      const ContactNode &nd = p.nodes[0];
-      out << nd.dofs[0] << ' ' << nd.dofs[1] << ' ' << nd.dofs[2] << "  " << p.t[0] << ' ' << p.t[1] << ' ' << p.t[2] << "  "
-          << p.n[0] << ' ' << p.n[1] << ' ' << p.n[2] << "  " << p.speed_factor << ' ' << p.g0 << '\n';
+    for (PetscInt c = 0; c < set.Size(); ++c) {
+      const ContactPoint &p = set.points[c];
+      bool explicit_cols = p.nodes.size() != 1 || p.nodes[0].weight != 1;
+      for (const ColumnEntries &col : p.cols) explicit_cols = explicit_cols || !col.empty();
+      if (!explicit_cols) {
+        const ContactNode &nd = p.nodes[0];
+        out << nd.dofs[0] << ' ' << nd.dofs[1] << ' ' << nd.dofs[2] << "  " << p.t[0] << ' ' << p.t[1] << ' ' << p.t[2] << "  "
+            << p.n[0] << ' ' << p.n[1] << ' ' << p.n[2] << "  " << p.speed_factor << ' ' << p.g0 << '\n';
+        continue;
+      }
+      // Anything else (several nodes, weights, explicit entries) as its columns, entries on one DOF summed.
+      std::map<PetscInt, PetscReal> col[3];
+      for (int d = 0; d < 3; ++d) set.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) { col[d][j] += v; });
+      out << "cols  " << p.t[0] << ' ' << p.t[1] << ' ' << p.t[2] << "  " << p.n[0] << ' ' << p.n[1] << ' ' << p.n[2] << "  "
+          << p.speed_factor << ' ' << p.g0 << "  " << col[0].size() << ' ' << col[1].size() << ' ' << col[2].size();
+      for (int d = 0; d < 3; ++d)
+        for (const auto &e : col[d]) out << "  " << e.first << ' ' << e.second;
+      out << '\n';
     }
   }
   PetscCallMPI(MPI_Barrier(comm));

@@ -252,6 +252,38 @@ PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Ma
   PetscFunctionReturn(0);
 }
 
+// Interface reduction of a Craig-Bampton model (matrices in contact order: point c's x, y, z at
+// 3c .. 3c+2, then the m modes). With E_c = [t_c b_c] (3 x 2), the in-plane interface block
+//   K_pp(2c+a, 2d+b) = E_c(:, a)^T K_r(3c.., 3d..) E_d(:, b)   (normals and modes held at 0), M_pp alike,
+// gives the characteristic constraint modes K_pp Psi = M_pp Psi Lambda, Psi^T M_pp Psi = I; the
+// k lowest replace the 2 n_c in-plane DOFs. T (n2 x n_c + k + m) maps the new coordinates
+// [u_n (one per point), xi (k), eta (m)] to the CB ones: u_xyz(c) = n_c u_n,c + E_c Psi(2c.., :) xi.
+// lam receives all 2 n_c eigenvalues (ascending), so the caller chooses k.
+PetscErrorCode InPlaneModes(MPI_Comm comm, const ContactSet &cs, const Dense &Mp, const Dense &Kp, Dense &Psi,
+                            std::vector<PetscReal> &lam)
+{
+  const PetscInt nc = cs.Size();
+  PetscFunctionBeginUser;
+  Dense Kpp(2 * nc, 2 * nc), Mpp(2 * nc, 2 * nc);
+  for (PetscInt c = 0; c < nc; ++c) {
+    Eigen::Matrix<PetscReal, 3, 2> Ec;
+    Ec << cs.points[c].t, cs.points[c].b;
+    for (PetscInt d = 0; d < nc; ++d) {
+      Eigen::Matrix<PetscReal, 3, 2> Ed;
+      Ed << cs.points[d].t, cs.points[d].b;
+      Kpp.block<2, 2>(2 * c, 2 * d) = Ec.transpose() * Kp.block<3, 3>(3 * c, 3 * d) * Ed;
+      Mpp.block<2, 2>(2 * c, 2 * d) = Ec.transpose() * Mp.block<3, 3>(3 * c, 3 * d) * Ed;
+    }
+  }
+  Eigen::GeneralizedSelfAdjointEigenSolver<Dense> ges;
+  PetscCallCXX(ges.compute(0.5 * (Kpp + Kpp.transpose()), 0.5 * (Mpp + Mpp.transpose())));
+  PetscCheck(ges.info() == Eigen::Success, comm, kErrInput,
+             "interface reduction: the in-plane interface block's eigenproblem failed (M_pp not positive definite?)");
+  Psi = ges.eigenvectors(); // M_pp-normalised, ascending eigenvalues
+  lam.assign(ges.eigenvalues().data(), ges.eigenvalues().data() + 2 * nc);
+  PetscFunctionReturn(0);
+}
+
 // One log stage per phase of the reduction (-log_view), registered once per process.
 struct Stages {
   PetscLogStage factor, modes, constraint, project;
@@ -313,6 +345,20 @@ PetscErrorCode CraigBampton::SetRedundantFactor(bool on)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode CraigBampton::SetInterfaceModes(PetscInt k)
+{
+  PetscFunctionBeginUser;
+  iface_modes_ = k;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CraigBampton::SetInterfaceFMax(PetscReal fmax)
+{
+  PetscFunctionBeginUser;
+  iface_fmax_ = fmax;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
 {
   const char *const types[] = {"none", "craig_bampton"};
@@ -338,6 +384,12 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                              "CraigBampton", rayleigh_, &rayleigh_, nullptr));
   PetscCall(PetscOptionsBool("-redundant", "On several ranks, every rank factorises the whole K_II and solves its share of the constraint modes alone (false: one distributed MUMPS factorisation and solve)",
                              "CraigBampton", redundant_, &redundant_, nullptr));
+  PetscCall(PetscOptionsInt("-interface_modes",
+                            "Interface reduction: keep this many in-plane characteristic constraint modes of the contact nodes "
+                            "(normal DOFs stay physical; -1: no interface reduction, or all below -reduce_interface_fmax)",
+                            "CraigBampton", iface_modes_, &iface_modes_, nullptr));
+  SquealOptionsReal("-interface_fmax", "Interface reduction: keep the in-plane characteristic constraint modes below this frequency (Hz); 0: by count only",
+                    "CraigBampton", &iface_fmax_, Range::NonNegative(), checks);
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   const std::string pre = OptionName(prefix_.c_str(), "");
@@ -348,7 +400,13 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                "cut-off %sfmax = %g Hz is below the band of interest (%sfband = %g Hz): raise %sfmax to 1.5-2 x %g Hz",
                pre.c_str(), (double)fmax_, pre.c_str(), (double)fband_, pre.c_str(), (double)fband_);
     PetscCheck(max_modes_ >= 1, comm_, kErrInput, "option %smax_modes = %" PetscInt_FMT ": expected >= 1", pre.c_str(), max_modes_);
+    PetscCheck(iface_modes_ >= -1, comm_, kErrInput,
+               "option %sinterface_modes = %" PetscInt_FMT ": expected >= 1 (or -1, the default: no interface reduction)", pre.c_str(),
+               iface_modes_);
   }
+  PetscCheck(type == 1 || (iface_modes_ < 0 && iface_fmax_ <= 0), comm_, kErrInput,
+             "%sinterface_modes / %sinterface_fmax reduce the interface of a Craig-Bampton model: add %stype craig_bampton",
+             pre.c_str(), pre.c_str(), pre.c_str());
   if (enabled) *enabled = type == 1;
   PetscFunctionReturn(0);
 }
@@ -371,6 +429,9 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(MatGetOwnershipRange(full.K, &rstart, &rend));
 
   // Interface in contact order: point c, its nodes, their x, y, z DOFs.
+  PetscCheck(!full.contacts.HasExplicitColumns(), comm, kErrInput,
+             "reduction: the contact set has explicit column entries (an already reduced model?); Craig-Bampton needs "
+             "node-based contact points, reduce the full model instead");
   std::vector<PetscInt> iface;
   for (const ContactPoint &p : full.contacts.points)
     for (const ContactNode &nd : p.nodes)
@@ -652,14 +713,25 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     }
     PetscFunctionReturn(0);
   };
-  auto finish = [&](const Dense &Ar, Mat *out) -> PetscErrorCode {
-    PetscFunctionBeginUser;
+  auto permute = [&](const Dense &Ar) {
     Dense Ap(n2, n2);
     for (PetscInt i = 0; i < n2; ++i)
       for (PetscInt j = 0; j < n2; ++j) Ap(perm[i], perm[j]) = Ar(i, j);
+    return Ap;
+  };
+  Dense T; // interface reduction: n2 x (n_c + k + m), CB coordinates from the new ones; empty: none
+  auto  finish = [&](const Dense &Ar, Mat *out) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    Dense Ap = permute(Ar);
+    if (T.size()) {
+      Dense AT;
+      PetscCallCXX(AT.noalias() = Ap * T);
+      PetscCallCXX(Ap.noalias() = T.transpose() * AT);
+    }
     PetscCall(CreateReducedMat(comm, Ap, out));
     PetscFunctionReturn(0);
   };
+  const PetscInt nc = full.contacts.Size();
   {
     Dense Mr, Kr, Cr;
     PetscCall(project(full.M, false, Mr));
@@ -672,6 +744,56 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     info_.rayleigh = rayleigh;
     if (full.C && rayleigh) Cr = ray_a * Mr + ray_b * Kr;
     else if (full.C) PetscCall(project(full.C, false, Cr));
+    if (iface_modes_ >= 0 || iface_fmax_ > 0) {
+      const std::string pre = OptionName(prefix_.c_str(), "");
+      for (PetscInt c = 0; c < nc; ++c)
+        PetscCheck(full.contacts.points[c].nodes.size() == 1, comm, kErrInput,
+                   "interface reduction: contact %" PetscInt_FMT " has %zu nodes; %sinterface_modes needs one node per contact point "
+                   "(drop the option)", c, full.contacts.points[c].nodes.size(), pre.c_str());
+      PetscCheck(iface_modes_ <= 2 * nc, comm, kErrInput,
+                 "%sinterface_modes %" PetscInt_FMT " exceeds the %" PetscInt_FMT " in-plane interface DOFs (2 x %" PetscInt_FMT
+                 " contact points): give at most %" PetscInt_FMT, pre.c_str(), iface_modes_, 2 * nc, nc, 2 * nc);
+      Dense                  Psi;
+      std::vector<PetscReal> lam;
+      PetscCall(InPlaneModes(comm, full.contacts, permute(Mr), permute(Kr), Psi, lam));
+      PetscInt k = 2 * nc;
+      if (iface_fmax_ > 0) {
+        const PetscReal w2 = std::pow(2 * PETSC_PI * iface_fmax_, 2);
+        k = (PetscInt)(std::upper_bound(lam.begin(), lam.end(), w2) - lam.begin());
+        PetscCheck(k > 0, comm, kErrInput,
+                   "%sinterface_fmax %g Hz keeps no in-plane interface mode (the lowest is at %g Hz): raise it", pre.c_str(),
+                   (double)iface_fmax_, std::sqrt(std::max(lam[0], (PetscReal)0)) / (2 * PETSC_PI));
+      }
+      if (iface_modes_ >= 0) k = std::min(k, iface_modes_);
+      PetscCheck(k > 0, comm, kErrInput,
+                 "%sinterface_modes 0 keeps no in-plane interface mode: give k >= 1, or -1 (default) for no interface reduction",
+                 pre.c_str());
+      T = Dense::Zero(n2, nc + k + m);
+      for (PetscInt c = 0; c < nc; ++c) {
+        const ContactPoint &p = full.contacts.points[c];
+        T.block<3, 1>(3 * c, c) = p.n;
+        for (PetscInt j = 0; j < k; ++j) T.block<3, 1>(3 * c, nc + j) = p.t * Psi(2 * c, j) + p.b * Psi(2 * c + 1, j);
+      }
+      for (PetscInt q = 0; q < m; ++q) T(nB + q, nc + k + q) = 1;
+      info_.n_normal = nc;
+      info_.n_inplane_modes = k;
+      info_.inplane_freq.clear();
+      for (PetscInt j = 0; j < k; ++j) info_.inplane_freq.push_back(std::sqrt(std::max(lam[j], (PetscReal)0)) / (2 * PETSC_PI));
+      red.contacts = full.contacts;
+      for (PetscInt c = 0; c < nc; ++c) {
+        ContactPoint   &p = red.contacts.points[c];
+        const PetscReal w = p.nodes[0].weight;
+        p.nodes.clear();
+        for (ColumnEntries &col : p.cols) col.clear();
+        // h_n selects the normal coordinate: the pivot elimination and the node-wise unilateral
+        // law stay exact; h_t, h_b are rows of the in-plane mode matrix, dense over xi.
+        p.cols[kN].emplace_back(c, w);
+        for (PetscInt j = 0; j < k; ++j) {
+          p.cols[kT].emplace_back(nc + j, w * Psi(2 * c, j));
+          p.cols[kB].emplace_back(nc + j, w * Psi(2 * c + 1, j));
+        }
+      }
+    }
     PetscCall(finish(Mr, red.M.out()));
     PetscCall(finish(Kr, red.K.out()));
     if (full.C) PetscCall(finish(Cr, red.C.out()));
@@ -691,6 +813,11 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     PetscCall(GatherVector(full.F, true, Ffull));
     for (PetscInt k = 0; k < nB; ++k) Fr[perm[k]] = Ffull[Bsorted[k]] + tw[k];
     for (PetscInt k = 0; k < m; ++k) Fr[nB + k] = tw[nB + k];
+    if (T.size()) {
+      const Eigen::Map<const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>> f(Fr.data(), n2);
+      const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>                   g = T.transpose() * f;
+      Fr.assign(g.data(), g.data() + g.size());
+    }
     PetscCall(MatCreateVecs(red.K, nullptr, red.F.out()));
     PetscInt lo, hi;
     PetscCall(VecGetOwnershipRange(red.F, &lo, &hi));
@@ -699,19 +826,27 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     PetscCall(VecAssemblyEnd(red.F));
   }
 
-  // The contact set follows its DOFs to the first 3 n_c positions; frames and speeds unchanged.
-  red.contacts = full.contacts;
-  PetscInt next = 0;
-  for (ContactPoint &p : red.contacts.points)
-    for (ContactNode &nd : p.nodes)
-      for (int k = 0; k < 3; ++k) {
-        PetscCheck(where[nd.dofs[k]] == next, comm, PETSC_ERR_PLIB, "reduction: contact DOF %" PetscInt_FMT " missing from the basis",
-                   nd.dofs[k]);
-        nd.dofs[k] = next++;
-      }
-  char name[64];
+  // The contact set follows its DOFs to the first 3 n_c positions; frames and speeds unchanged
+  // (with interface reduction it was set above).
+  if (!T.size()) {
+    red.contacts = full.contacts;
+    PetscInt next = 0;
+    for (ContactPoint &p : red.contacts.points)
+      for (ContactNode &nd : p.nodes)
+        for (int k = 0; k < 3; ++k) {
+          PetscCheck(where[nd.dofs[k]] == next, comm, PETSC_ERR_PLIB, "reduction: contact DOF %" PetscInt_FMT " missing from the basis",
+                     nd.dofs[k]);
+          nd.dofs[k] = next++;
+        }
+  }
+  char name[128];
   PetscCall(PetscSNPrintf(name, sizeof(name), " + CB(%" PetscInt_FMT " + %" PetscInt_FMT ")", nB, m));
   red.name = full.name + name;
+  if (T.size()) {
+    PetscCall(PetscSNPrintf(name, sizeof(name), " + IR(%" PetscInt_FMT " normal + %" PetscInt_FMT " in-plane)", info_.n_normal,
+                            info_.n_inplane_modes));
+    red.name += name;
+  }
   PetscCall(red.Validate());
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t4));
@@ -743,6 +878,12 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
   if (info_.n_modes > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, ", %.1f to %.1f Hz", (double)info_.freq.front(), (double)info_.freq.back()));
   PetscCall(PetscViewerASCIIPrintf(viewer, ")\n"));
+  if (info_.n_inplane_modes > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "  interface reduction: %" PetscInt_FMT " interface DOFs -> %" PetscInt_FMT " normal + %" PetscInt_FMT
+                                     " in-plane characteristic constraint modes (%.1f to %.1f Hz): %" PetscInt_FMT " DOFs\n",
+                                     info_.n_interface, info_.n_normal, info_.n_inplane_modes, (double)info_.inplane_freq.front(),
+                                     (double)info_.inplane_freq.back(), info_.n_normal + info_.n_inplane_modes + info_.n_modes));
   PetscCall(PetscViewerASCIIPrintf(viewer,
                                    "  time %.3f s (factorisation of K_II %.3f s, fixed-interface modes %.3f s, constraint modes %.3f s, "
                                    "projection %.3f s%s), resident memory %.1f MB\n",

@@ -60,14 +60,15 @@ PetscErrorCode EquilibriumSolver::SolveBordered(const Model &model, const std::v
 
   PetscCall(AppendLocalRows(model.K, 1.0, 0, 0, t));
   for (PetscInt a = 0; a < na; ++a) {
-    const ContactPoint &p = cs.points[active[a]];
-    for (const ContactNode &nd : p.nodes)
-      for (int k = 0; k < 3; ++k) {
-        const PetscInt  j  = nd.dofs[k];
-        const PetscReal bn = nd.weight * p.n[k], bt = nd.weight * p.t[k];
-        if (j >= rstart && j < rend && bn + mu * bt != 0) t.Add(j, n + a, -(bn + mu * bt));
-        if (last && bn != 0) t.Add(n + a, j, bn);
-      }
+    // Column n + a is -B_mu = -(h_n + mu h_t) (entries on one DOF add up), row n + a is h_n^T.
+    cs.ForEachEntry(active[a], kN, [&](PetscInt j, PetscReal bn) {
+      if (j >= rstart && j < rend) t.Add(j, n + a, -bn);
+      if (last) t.Add(n + a, j, bn);
+    });
+    if (mu != 0)
+      cs.ForEachEntry(active[a], kT, [&](PetscInt j, PetscReal bt) {
+        if (j >= rstart && j < rend) t.Add(j, n + a, -mu * bt);
+      });
   }
   PetscCall(MatCreateFromTriplets(comm_, mloc, mloc, n + na, n + na, t, A.out()));
 

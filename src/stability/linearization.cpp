@@ -9,14 +9,11 @@ namespace squeal {
 
 namespace {
 
-// Nonzero entries of one local direction column of point c: DOF -> weight * e_k.
+// Nonzero entries of one local direction column of point c: DOF -> value.
 std::map<PetscInt, PetscReal> Column(const ContactSet &cs, PetscInt c, int dir)
 {
   std::map<PetscInt, PetscReal> col;
-  const Eigen::Vector3d        &e = cs.Axis(c, dir);
-  for (const ContactNode &nd : cs.points[c].nodes)
-    for (int k = 0; k < 3; ++k)
-      if (e[k] != 0) col[nd.dofs[k]] += nd.weight * e[k];
+  cs.ForEachEntry(c, dir, [&](PetscInt j, PetscReal v) { col[j] += v; });
   for (auto it = col.begin(); it != col.end();) it = (it->second == 0) ? col.erase(it) : std::next(it);
   return col;
 }
@@ -62,7 +59,7 @@ PetscErrorCode BuildReducedProblem(const Model &model, const SlidingEquilibrium 
              " ranks",
              n_r, size, n_r);
 
-  Triplets q, pm, db;
+  Triplets q, pm, hbs, hbt; // hbs: columns coef_c h_{b,c}, hbt: columns h_{b,c}; D_b = hbs hbt^T
   for (PetscInt j = rstart; j < rend; ++j)
     if (!std::binary_search(sorted.begin(), sorted.end(), j)) q.Add(j, reduced_index(j), 1.0);
   for (PetscInt i = rstart; i < rend; ++i) pm.Add(i, i, 1.0);
@@ -82,8 +79,10 @@ PetscErrorCode BuildReducedProblem(const Model &model, const SlidingEquilibrium 
       if (cs.law == FrictionLaw::Planar) {
         const PetscReal coef = mu * eq.N[c] / cs.Speed(c);
         for (auto &ei : hb)
-          if (ei.first >= rstart && ei.first < rend)
-            for (auto &ej : hb) db.Add(ei.first, ej.first, coef * ei.second * ej.second);
+          if (ei.first >= rstart && ei.first < rend) {
+            hbs.Add(ei.first, (PetscInt)a, coef * ei.second);
+            hbt.Add(ei.first, (PetscInt)a, ei.second);
+          }
       }
     }
   }
@@ -92,7 +91,20 @@ PetscErrorCode BuildReducedProblem(const Model &model, const SlidingEquilibrium 
   // rows are all pivots with an empty share, which SLEPc 3.18's TOAR does not survive in parallel.
   PetscCall(MatCreateFromTriplets(comm, rend - rstart, PETSC_DECIDE, N, n_r, q, rp.Q.out()));
   PetscCall(MatCreateFromTriplets(comm, rend - rstart, rend - rstart, N, N, pm, P.out()));
-  PetscCall(MatCreateFromTriplets(comm, rend - rstart, rend - rstart, N, N, db, Db.out()));
+  // D_b = sum_c coef_c h_b h_b^T as one sparse product: with explicit (dense) columns over k
+  // interface modes, the sum of n_c rank-one k x k blocks as triplets cost seconds.
+  PetscInt nb = (PetscInt)hbt.rows.size();
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &nb, 1, MPIU_INT, MPI_SUM, comm));
+  if (nb > 0) {
+    MatH Hbs, Hb;
+    const PetscInt na = (PetscInt)rp.active.size();
+    PetscCall(MatCreateFromTriplets(comm, rend - rstart, PETSC_DECIDE, N, na, hbs, Hbs.out()));
+    PetscCall(MatCreateFromTriplets(comm, rend - rstart, PETSC_DECIDE, N, na, hbt, Hb.out()));
+    PetscCall(MatMatTransposeMult(Hbs, Hb, MAT_INITIAL_MATRIX, PETSC_DEFAULT, Db.out()));
+  } else {
+    Triplets none;
+    PetscCall(MatCreateFromTriplets(comm, rend - rstart, rend - rstart, N, N, none, Db.out()));
+  }
   PetscCall(MatTransposeMatMult(rp.Q, P, MAT_INITIAL_MATRIX, PETSC_DEFAULT, rp.L.out()));
 
   // C + D_b, with either part possibly absent.

@@ -63,8 +63,7 @@ inline Eigen::MatrixXd DenseColumns(const ContactSet &cs, PetscInt N, int dir)
 {
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(N, cs.Size());
   for (PetscInt c = 0; c < cs.Size(); ++c)
-    for (const ContactNode &nd : cs.points[c].nodes)
-      for (int k = 0; k < 3; ++k) H(nd.dofs[k], c) += nd.weight * cs.Axis(c, dir)[k];
+    cs.ForEachEntry(c, dir, [&](PetscInt j, PetscReal v) { H(j, c) += v; });
   return H;
 }
 

@@ -4,7 +4,10 @@
 // Point c contributes the columns h_{t,c}, h_{b,c}, h_{n,c} of the contact operator
 // H in R^{N x 3 n_c} (method.md §1.1): column h_{e,c} scatters weight * e_c onto the three
 // translational DOFs of each node of the point (weight +1 for the structure node, -1 for an
-// opposing deformable body). Local quantities: g_c = H_c^T U + g0_c, v_c = H_c^T dU, R = H r.
+// opposing deformable body), plus the point's explicit entries of that column, if any (a model
+// whose DOFs are not all node translations: the in-plane interface modes of a reduced model,
+// craig_bampton.h). Local quantities: g_c = H_c^T U + g0_c, v_c = H_c^T dU, R = H r.
+// Every consumer reads H through ForEachEntry, so both forms take the same path.
 // The set is small (n_c << N) and replicated on every rank; H itself is distributed like U.
 #pragma once
 
@@ -15,6 +18,7 @@
 #include <Eigen/Geometry> // cross()
 
 #include <array>
+#include <utility>
 #include <vector>
 
 namespace squeal {
@@ -27,8 +31,14 @@ struct ContactNode {
   PetscReal               weight = 1.0;
 };
 
+// Explicit entries (global DOF, value) of one column of H.
+using ColumnEntries = std::vector<std::pair<PetscInt, PetscReal>>;
+
 struct ContactPoint {
   std::vector<ContactNode> nodes;
+  // Explicit entries of h_t, h_b, h_n (index kT, kB, kN), added to the nodes' part; the frame
+  // then only names the directions (the nodes' columns use it).
+  std::array<ColumnEntries, 3> cols;
   Eigen::Vector3d          t{1, 0, 0}, b{0, 1, 0}, n{0, 0, 1}; // in the nodal DOF basis
   PetscReal                speed_factor = 1.0;                  // V_c = speed_factor * V
   PetscReal                g0           = 0.0;                  // gap at U = 0
@@ -50,13 +60,34 @@ public:
     return dir == kT ? points[c].t : (dir == kB ? points[c].b : points[c].n);
   }
 
+  // Visits every entry (dof, value) of column h_{dir,c}: the nodes' non-zero weight * e_k, then
+  // the explicit entries. A DOF may come twice (two nodes, or a node and an explicit entry):
+  // consumers add.
+  template <class F>
+  void ForEachEntry(PetscInt c, int dir, F &&f) const
+  {
+    const ContactPoint    &p = points[c];
+    const Eigen::Vector3d &e = Axis(c, dir);
+    for (const ContactNode &nd : p.nodes)
+      for (int k = 0; k < 3; ++k) {
+        const PetscReal v = nd.weight * e[k];
+        if (v != 0) f(nd.dofs[k], v);
+      }
+    for (const auto &en : p.cols[dir]) f(en.first, en.second);
+  }
+  // True if some point carries explicit column entries.
+  bool HasExplicitColumns() const;
+
   // Completes b = n x t and checks everything a file or a builder may get wrong: DOF indices
   // in [0, N), unit and orthogonal t and n, positive speed factors, finite numbers, no DOF
-  // shared by two points. Collective; every rank holds the same set.
+  // shared by two points' nodes, a non-zero h_n per point. With explicit entries also what the
+  // linearisation and the energy estimate assume of nodal contact (method.md §1.1, §4): the
+  // h_n of distinct points act on distinct DOFs (so each point's pivot DOF is in no other h_n,
+  // and H_n^T H_n is diagonal) and H_n^T H_t = H_n^T H_b = 0. Collective; every rank holds the same set.
   PetscErrorCode Validate(MPI_Comm comm, PetscInt N);
 
   // The DOF through which point c's normal constraint is eliminated in the linearisation:
-  // the nodal DOF with the largest |weight * n| component.
+  // the entry of h_n with the largest magnitude (the first one on a tie).
   PetscInt PivotDof(PetscInt c) const;
 
   // Assembles [h_{dir,c} for c in which] as an N x |which| AIJ matrix whose rows are laid out

@@ -53,6 +53,12 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
 // speed_factor: V_c / V (default 1); g0: initial gap (default 0).
 // Commas (CSV) separate like blanks; a first line of names (x y z tx ty tz nx ny nz, optional
 // speed_factor g0, any order; "dof_x" for "x") maps the columns.
+// A point whose columns of H are not one node's translations (several nodes, weights, the
+// interface modes of a reduced model) is a row starting with the word cols:
+//   cols  tx ty tz  nx ny nz  speed_factor g0  n_t n_b n_n  dof value  dof value ...
+// with n_t entries of h_t, then n_b of h_b, then n_n of h_n (ContactPoint::cols). Both row forms
+// may be mixed. WriteContactTable writes single-node points of weight 1 in the first form and
+// every other point in the second, so any contact set reads back with the same columns.
 PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set);
 PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactSet &set);
 

@@ -27,6 +27,17 @@
 // distributed solve phase with all the right-hand sides was no faster on 2 ranks than on one, and
 // the scatter of its distributed solution into W came on top (README, MPI speed-ups, item a).
 // The price: every rank holds a whole factor, and the factorisation itself no longer splits.
+// Interface reduction (-reduce_interface_modes k and/or -reduce_interface_fmax f; default off):
+// each contact node's 3 interface DOFs are rotated to its frame (t, b, n); the n_c normal DOFs
+// stay physical (h_n stays a selection, so the equilibrium's and the linearisation's pivot
+// elimination and the unilateral law stay exact node by node), and the 2 n_c in-plane DOFs are
+// replaced by the k lowest characteristic constraint modes of the reduced in-plane interface
+// block (K_pp Psi = M_pp Psi Lambda, Psi^T M_pp Psi = I, normals and fixed-interface modes held):
+//   u_xyz(c) = n_c u_n,c + [t_c b_c] Psi_c xi,   A_r <- T^T A_r T,   n_c + k + m DOFs,
+// ordered [u_n (n_c), xi (k), eta (m)]. h_t, h_b of point c become the rows 2c, 2c + 1 of Psi
+// (explicit column entries, dense over xi). With k = 2 n_c it is an exact change of basis. The
+// contact problem of a time step still has 3 n_c unknowns: the Delassus matrix keeps its size,
+// but its in-plane block has rank <= k. One node (any weight) per point only.
 // Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
 // -reduce_redundant, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
 // (e.g. -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves; with
@@ -50,6 +61,9 @@ struct ReductionInfo {
   PetscReal              cpu_factor = 0, cpu_modes = 0, cpu_static = 0, cpu_project = 0;
   bool                   rayleigh = false; // C detected as a M + b K and projected as a M_r + b K_r
   PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
+  // Interface reduction (0: none): normal DOFs kept, in-plane modes kept and their frequencies (Hz).
+  PetscInt               n_normal = 0, n_inplane_modes = 0;
+  std::vector<PetscReal> inplane_freq;
 };
 
 class CraigBampton {
@@ -65,6 +79,11 @@ public:
   // true (default): on several ranks every rank factorises the whole K_II and solves its share of
   // the constraint modes alone; false: one distributed MUMPS factorisation and solve (-reduce_redundant).
   PetscErrorCode SetRedundantFactor(bool on);
+  // Interface reduction: keep the k lowest in-plane characteristic constraint modes (k < 0: no
+  // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
+  // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
+  PetscErrorCode SetInterfaceModes(PetscInt k);
+  PetscErrorCode SetInterfaceFMax(PetscReal fmax);
   // -reduce_type, -reduce_fmax, -reduce_nmodes, -reduce_fband; *enabled tells whether
   // -reduce_type asks for a reduction.
   PetscErrorCode SetFromOptions(bool *enabled = nullptr);
@@ -84,6 +103,8 @@ private:
   PetscBool     sparse_rhs_ = PETSC_TRUE;
   PetscBool     count_modes_ = PETSC_TRUE;
   PetscBool     redundant_   = PETSC_TRUE;
+  PetscInt      iface_modes_ = -1;
+  PetscReal     iface_fmax_  = 0;
   ReductionInfo info_;
 };
 
