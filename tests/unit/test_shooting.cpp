@@ -656,8 +656,6 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   EXPECT_TRUE(defl.converged);
   EXPECT_LE(defl.iterations, 10); // measured 9
   EXPECT_LT(defl.residual, 1e-5);
-  // Not the equilibrium: the cycle lifts off for about half of each period (README: 48.5 %).
-  EXPECT_GT(defl.frac_separated, 0.3);
 
   // The settled cycle of a transient of the same model at the same step.
   TransientAnalysis ta(PETSC_COMM_WORLD);
@@ -668,7 +666,9 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   ta.periods = 120;
   TransientResult tr;
   ASSERT_EQ(ta.Run(pr.model, pr.eq, pr.stab, ti2, tr), 0);
-  if (Rank0()) {
+  if (Rank0()) { // the orbit's summaries live on rank 0
+    // Not the equilibrium: the cycle lifts off for about half of each period (README: 48.5 %).
+    EXPECT_GT(defl.frac_separated, 0.3);
     EXPECT_NEAR(tr.summary.period / defl.period, 1.0, 1e-4);
     for (int j = 0; j < 2; ++j) EXPECT_NEAR(tr.summary.peak_to_peak[j] / defl.peak_to_peak[j], 1.0, 1e-3) << "DOF " << j;
   }
