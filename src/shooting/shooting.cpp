@@ -38,7 +38,7 @@ struct ShootingCallbacks {
     PetscCall(s->Residual(x, f));
     PetscFunctionReturn(0);
   }
-  static PetscErrorCode Jacobian(SNES, Vec x, Mat, Mat, void *ctx)
+  static PetscErrorCode Jacobian(SNES snes, Vec x, Mat, Mat, void *ctx)
   {
     auto *s = static_cast<Shooting *>(ctx);
     PetscBool same = PETSC_FALSE;
@@ -49,6 +49,7 @@ struct ShootingCallbacks {
       if (s->jdense_) PetscCall(s->BuildDenseJacobian(x));
       else if (s->jlinear_) PetscCall(s->BuildLinearPreconditioner(x));
       PetscCall(VecCopy(x, s->xbase_));
+      PetscCall(s->SetDeflationBase(snes, x));
       PetscFunctionReturn(0);
     }
     // The base point of the products: reuse the residual SNES just computed there.
@@ -69,6 +70,7 @@ struct ShootingCallbacks {
     PetscCall(PCShellGetContext(pc, &s));
     PetscCall(s->ToNatural(v, z));
     z = s->jlu_.solve(z);
+    if (s->defl_m_ > 0) z /= s->defl_m_; // (m J)^-1: the rank-one part of the deflated Jacobian is left to GMRES
     PetscCall(s->FromNatural(z, y));
     PetscFunctionReturn(0);
   }
@@ -78,6 +80,15 @@ struct ShootingCallbacks {
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &s));
     PetscCall(s->JacobianProduct(s->xbase_, v, y));
+    if (s->defl_m_ > 0) {
+      // d(m F) v = m J v + (grad m . v) F at the base (difference products differentiate m F itself).
+      PetscScalar a, b;
+      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
+      PetscCall(VecDot(s->wU_, s->deflgU_, &a));
+      PetscCall(VecDot(s->wdU_, s->deflgdU_, &b));
+      PetscCall(VecScale(y, s->defl_m_));
+      PetscCall(VecAXPY(y, a + b, s->deflF_));
+    }
     PetscFunctionReturn(0);
   }
   // y = M v by forward differences of the flow, displacement and velocity parts of v perturbed
@@ -185,8 +196,13 @@ struct ShootingCallbacks {
     PetscCall(s->Unpack(f, s->aU_, s->adU_, &p));
     PetscCall(VecNorm(s->wU_, NORM_2, &nU));
     PetscCall(VecNorm(s->wdU_, NORM_2, &ndU));
-    const PetscReal nH  = std::sqrt(std::max(0.0, fnorm * fnorm - p * p));
+    // SNES sees the deflated residual m (H, p): the stopping rule (6.3) reads H itself.
+    PetscReal m, coef;
+    PetscCall(s->Deflation(s->wU_, s->wdU_, &m, &coef));
+    const PetscReal nH  = std::sqrt(std::max(0.0, fnorm * fnorm - p * p)) / m;
     const PetscReal res = nH / std::hypot(nU, ndU);
+    char            mtxt[32] = "";
+    if (s->deflate_power > 0) std::snprintf(mtxt, sizeof mtxt, "  m = %.3f", (double)m);
     s->hist_res_.push_back(res);
     s->hist_T_.push_back(T);
     if (res < s->best_res_) {
@@ -200,9 +216,31 @@ struct ShootingCallbacks {
     }
     PetscBool mon = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
-    if (mon)
-      PetscCall(PetscPrintf(s->comm_, "  shooting %2" PetscInt_FMT ": ||H||/||Z0|| = %.3e  T = %.9f s  dT/T = %.3e\n", it,
-                            (double)res, (double)T, it > 0 ? (double)(std::abs(dT) / T) : 0.0));
+    if (mon) {
+      // Distance from the sliding equilibrium (the trivial root) and the flow's contact regime.
+      PetscReal dq, open = 0, stick = 0;
+      PetscCall(VecWAXPY(s->tmp_, -1.0, s->Ue_, s->wU_));
+      PetscCall(VecNorm(s->tmp_, NORM_2, &dq));
+      PetscBool same = PETSC_FALSE;
+      if (s->tr_valid_) PetscCall(VecEqual(x, s->trx_, &same));
+      if (same && s->trR_.rows() > 0) {
+        std::vector<int> st;
+        for (Eigen::Index i = 0; i < s->trR_.cols(); ++i) {
+          s->ti_->Contact().Status(s->trR_.col(i), st);
+          for (int c : st) open += c == kOpen, stick += c == kStick;
+        }
+        open /= (PetscReal)(s->trR_.cols() * s->trR_.rows() / 3), stick /= (PetscReal)(s->trR_.cols() * s->trR_.rows() / 3);
+      }
+      KSP      ksp;
+      PetscInt kit = 0;
+      PetscCall(SNESGetKSP(snes, &ksp));
+      if (it > 0) PetscCall(KSPGetIterationNumber(ksp, &kit));
+      PetscCall(PetscPrintf(s->comm_,
+                            "  shooting %2" PetscInt_FMT ": ||H||/||Z0|| = %.3e  T = %.9f s  dT/T = %.3e  |U-Ue| = %.3e |dU| = %.3e"
+                            "  open %.1f%% stick %.1f%%  ksp %" PetscInt_FMT "%s\n",
+                            it, (double)res, (double)T, it > 0 ? (double)(std::abs(dT) / T) : 0.0, (double)dq, (double)ndU,
+                            100 * (double)open, 100 * (double)stick, kit, mtxt));
+    }
     if (PetscIsInfOrNanReal(fnorm)) {
       *reason        = SNES_DIVERGED_FNORM_NAN;
       s->fail_reason_ = "residual is NaN or infinite";
@@ -309,6 +347,13 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Stop the -shoot_pre_periods early once the period-corrected return distance |Z(T) - Z0 + dt G| / |Z(T)| is "
                     "below this (0: run them all)",
                     "Shooting", &pre_tol, Range::NonNegative(), checks);
+  SquealOptionsReal("-deflate_power",
+                    "Deflate the sliding equilibrium Z_e (a trivial root: periodic with any T): Newton on m(Z0) H with "
+                    "m = (d / d_0)^-p + shift, d = |(omega_0 (U0 - U_e), dU0)|, d_0 its value at the start, and a "
+                    "backtracking line search on it unless -shoot_snes_linesearch_type is given (0: off)",
+                    "Shooting", &deflate_power, Range::NonNegative(), checks);
+  SquealOptionsReal("-deflate_shift", "Shift of the deflation operator m (its value far from Z_e)", "Shooting", &deflate_shift,
+                    Range::Positive(), checks);
   PetscCall(PetscOptionsReal("-tangent_cache_mb",
                              "Memory for the per-step factors of the contact tangent system along the flow (reused by every "
                              "Jacobian product of a Newton iteration; 0: refactorise in each product)",
@@ -370,7 +415,7 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   model_ = &model;
   ti_    = &ti;
   PetscCall(VecGetLocalSize(model.F, &nloc_));
-  for (VecH *v : {&U_, &dU_, &U1_, &dU1_, &wU_, &wdU_, &gU_, &gdU_, &aU_, &adU_, &tmp_, &ZaU_, &ZadU_, &GaU_, &GadU_, &Ue_})
+  for (VecH *v : {&U_, &dU_, &U1_, &dU1_, &wU_, &wdU_, &gU_, &gdU_, &aU_, &adU_, &tmp_, &ZaU_, &ZadU_, &GaU_, &GadU_, &Ue_, &deflgU_, &deflgdU_})
     PetscCall(VecDuplicate(model.F, v->out()));
   PetscCall(VecCopy(eq.U, Ue_));
   const PetscInt nc = model.contacts.Size();
@@ -379,7 +424,7 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
     r_init_[3 * c + kT] = model.contacts.mu * eq.N[c];
     r_init_[3 * c + kN] = eq.N[c];
   }
-  for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_, &lastx_, &trx_, &jx_}) PetscCall(CreateState(v->out()));
+  for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_, &lastx_, &trx_, &jx_, &deflF_}) PetscCall(CreateState(v->out()));
   for (VecH *v : {&lastU1_, &lastdU1_}) PetscCall(VecDuplicate(model.F, v->out()));
   PetscCallMPI(MPI_Comm_size(comm_, &size_));
   PetscCall(VecGetSize(model.F, &N_));
@@ -543,6 +588,35 @@ PetscErrorCode Shooting::SetAnchor(Vec x)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Shooting::EquilibriumDistance(Vec U, Vec dU, PetscReal *d)
+{
+  PetscReal       a, b;
+  const PetscReal w = 2 * PETSC_PI / T0_;
+  PetscFunctionBeginUser;
+  PetscCall(VecWAXPY(tmp_, -1.0, Ue_, U));
+  PetscCall(VecNorm(tmp_, NORM_2, &a));
+  PetscCall(VecNorm(dU, NORM_2, &b));
+  *d = std::hypot(w * a, b);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Deflation(Vec U, Vec dU, PetscReal *m, PetscReal *coef)
+{
+  PetscReal d;
+  PetscFunctionBeginUser;
+  *m = 1, *coef = 0;
+  if (!(deflate_power > 0) || !(dist0_ > 0)) PetscFunctionReturn(0);
+  PetscCall(EquilibriumDistance(U, dU, &d));
+  if (!(d > 0)) { // on the equilibrium itself the deflated residual is infinite
+    *m = PETSC_INFINITY;
+    PetscFunctionReturn(0);
+  }
+  const PetscReal q = std::pow(d / dist0_, -deflate_power);
+  *m                = q + deflate_shift;
+  *coef             = -deflate_power * q / (d * d); // grad m = coef (omega_0^2 (U - U_e), dU)
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Shooting::Residual(Vec x, Vec f)
 {
   PetscReal   T, p = 0;
@@ -580,6 +654,29 @@ PetscErrorCode Shooting::Residual(Vec x, Vec f)
     p = PetscRealPart(d1 + d2);
   }
   PetscCall(Pack(U1_, dU1_, p, f));
+  if (deflate_power > 0) {
+    PetscReal m, coef;
+    PetscCall(Deflation(U_, dU_, &m, &coef));
+    PetscCall(VecScale(f, m));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetDeflationBase(SNES snes, Vec x)
+{
+  PetscReal coef;
+  Vec       f;
+  PetscFunctionBeginUser;
+  defl_m_ = 0;
+  if (!(deflate_power > 0) || !(dist0_ > 0)) PetscFunctionReturn(0);
+  PetscCall(Unpack(x, U_, dU_, nullptr));
+  PetscCall(Deflation(U_, dU_, &defl_m_, &coef)); // leaves U0 - U_e in tmp_
+  const PetscReal w = 2 * PETSC_PI / T0_;
+  PetscCall(VecAXPBY(deflgU_, coef * w * w, 0.0, tmp_));
+  PetscCall(VecAXPBY(deflgdU_, coef, 0.0, dU_));
+  // SNES's function at x is m F(x) (its phase row set to 0 by the update): F = that / m.
+  PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
+  PetscCall(VecAXPBY(deflF_, 1 / defl_m_, 0.0, f));
   PetscFunctionReturn(0);
 }
 
@@ -1333,6 +1430,15 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       PetscCall(SNESKSPSetParametersEW(snes_, PETSC_DEFAULT, 0.1, 0.1, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
     }
   }
+  {
+    // Deflated, the residual's norm has no minimum at Z_e any more: globalise on it (backtracking),
+    // unless the line search was chosen (without deflation the basic one is the talk's plain Newton).
+    PetscBool      set = PETSC_FALSE;
+    SNESLineSearch ls;
+    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_linesearch_type", &set));
+    PetscCall(SNESGetLineSearch(snes_, &ls));
+    if (!set) PetscCall(SNESLineSearchSetType(ls, deflate_power > 0 ? SNESLINESEARCHBT : SNESLINESEARCHBASIC));
+  }
   Mlin_.resize(0, 0);
   {
     KSP ksp;
@@ -1426,6 +1532,9 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(Pack(U, dU, T, x));
   } else PetscCall(Pack(U0, dU0, T0, x));
   PetscCall(VecCopy(x, best_x_));
+  defl_m_ = 0;
+  PetscCall(Unpack(x, wU_, wdU_, nullptr));
+  PetscCall(EquilibriumDistance(wU_, wdU_, &dist0_));
   VecH f;
   PetscCall(VecDuplicate(x, f.out()));
   PetscCall(SNESSetFunction(snes_, f, ShootingCallbacks::Function, this));
@@ -1559,8 +1668,10 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.pre_period          = pre_T_;
   // From the energy estimate, Newton can wander where the cycle's shape is far from the unstable
   // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
-  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s",
+  const bool collapsed = res.reason.find("collapsed") != std::string::npos && !(deflate_power > 0);
+  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s%s",
              res.reason.c_str(), (double)res.residual, (double)res.period,
+             collapsed ? "; keep Newton off the equilibrium with -shoot_deflate_power 2" : "",
              res.reason.find("Krylov") != std::string::npos ? ""
              : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
              : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"

@@ -625,3 +625,52 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
     EXPECT_LE(pre.iterations, ref.iterations) << "V = " << V;
   }
 }
+
+// A start ten times below the energy estimate (case 1: no contact opens or sticks along its flow)
+// lies where the period map is linear, and the only fixed point of a linear map is the sliding
+// equilibrium Z_e: plain Newton goes there ("collapsed onto the sliding equilibrium"), and so does
+// any globalisation on ||H||, which is 0 at Z_e. Deflated (-shoot_deflate_power 2, m = (d/d_0)^-2 + 1,
+// with backtracking on ||m H||) it reaches the limit cycle: the one the transient settles on.
+TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
+{
+  ThreeDofParams p; // case 1
+  Problem        pr(p);
+  ASSERT_TRUE(pr.est.found);
+  Vec U0, dU0;
+  ASSERT_EQ(VecDuplicate(pr.est.U0, &U0), 0);
+  ASSERT_EQ(VecDuplicate(pr.est.dU0, &dU0), 0);
+  ASSERT_EQ(VecAXPBYPCZ(U0, 0.1, 0.9, 0.0, pr.est.U0, pr.eq.U), 0); // U_e + 0.1 (U0 - U_e)
+  ASSERT_EQ(VecAXPBY(dU0, 0.1, 0.0, pr.est.dU0), 0);
+  pr.sh.floquet = PETSC_FALSE;
+  ShootingResult plain, defl;
+  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
+  const PetscErrorCode e = pr.sh.Solve(pr.model, pr.eq, pr.ti, U0, dU0, pr.est.T0, plain);
+  PetscPopErrorHandler();
+  EXPECT_NE(e, 0);
+  EXPECT_FALSE(plain.converged);
+  EXPECT_NE(plain.reason.find("collapsed onto the sliding equilibrium"), std::string::npos) << plain.reason;
+
+  pr.sh.deflate_power = 2;
+  pr.sh.deflate_shift = 1;
+  ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, U0, dU0, pr.est.T0, defl), 0) << defl.reason;
+  EXPECT_TRUE(defl.converged);
+  EXPECT_LE(defl.iterations, 10); // measured 9
+  EXPECT_LT(defl.residual, 1e-5);
+
+  // The settled cycle of a transient of the same model at the same step.
+  TransientAnalysis ta(PETSC_COMM_WORLD);
+  ThetaIntegrator   ti2(PETSC_COMM_WORLD);
+  ASSERT_EQ(ta.SetFromOptions(), 0);
+  ASSERT_EQ(ti2.SetFromOptions(), 0);
+  ta.h       = defl.period / pr.sh.steps;
+  ta.periods = 120;
+  TransientResult tr;
+  ASSERT_EQ(ta.Run(pr.model, pr.eq, pr.stab, ti2, tr), 0);
+  if (Rank0()) { // the orbit's summaries live on rank 0
+    // Not the equilibrium: the cycle lifts off for about half of each period (README: 48.5 %).
+    EXPECT_GT(defl.frac_separated, 0.3);
+    EXPECT_NEAR(tr.summary.period / defl.period, 1.0, 1e-4);
+    for (int j = 0; j < 2; ++j) EXPECT_NEAR(tr.summary.peak_to_peak[j] / defl.peak_to_peak[j], 1.0, 1e-3) << "DOF " << j;
+  }
+  VecDestroy(&U0), VecDestroy(&dU0);
+}

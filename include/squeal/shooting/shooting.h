@@ -9,7 +9,10 @@
 // Newton iteration (SNESSetUpdate), so the last row linearises to the talk's phase row of (6.2).
 // The Jacobian is a MatShell of matrix-free products (6.4): one period integration each, forward
 // differences with step -shoot_fd_step * ||Z0|| / ||v||, which include d Z / d T consistently;
-// the bordered system is solved by GMRES without preconditioner (-shoot_ksp_*). Newton stops
+// the bordered system is solved by GMRES without preconditioner (-shoot_ksp_*). With
+// -shoot_deflate_power p > 0, SNES solves m(Z0) (H, p) = 0 instead, m = (d / d_0)^-p + shift
+// (Farrell, Birkisson & Funke, SIAM J. Sci. Comput. 37 (2015) A2026), whose Jacobian is
+// m J + F grad m^T: the sliding equilibrium, where H = 0 for any T, is no longer a root. Newton stops
 // when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate x_k, dT being the Newton
 // correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
 // Floquet multipliers: eigenvalues of the monodromy matrix, from the exact tangents of the steps
@@ -142,6 +145,11 @@ public:
   // 0.2 / 0.1 / 0.02 take 2 / 3 / 4 / 7 / 24 periods, then 8 / 6 / 6 / 6 / 5 Newton iterations; on
   // the 31119-DOF pad 0.2 (6 periods) leaves Newton wandering at ||H||/||Z0|| ~ 1 and 0.02 (38) converges in 5.
   PetscReal pre_tol          = 0.05;
+  // -shoot_deflate_power, -shoot_deflate_shift: deflation of the sliding equilibrium Z_e (Farrell,
+  // Birkisson & Funke 2015): SNES solves m(Z0) (H, p) = 0, m = (d / d_0)^-p + shift,
+  // d = |(omega_0 (U0 - U_e), dU0)|, d_0 at the start, so that neither Newton nor a globalisation on
+  // the residual's norm can settle on Z_e (periodic with any T: ||H|| = 0 there).
+  PetscReal deflate_power = 0, deflate_shift = 1;
 
 private:
   friend struct ShootingCallbacks;
@@ -215,6 +223,14 @@ private:
   std::string              fail_reason_;
   PetscReal                z_e_dist0_ = 0;
   VecH                     Ue_;
+  PetscReal                dist0_ = 0;
+  PetscErrorCode           EquilibriumDistance(Vec U, Vec dU, PetscReal *d); // weighted; U - U_e left in tmp_
+  PetscErrorCode           Deflation(Vec U, Vec dU, PetscReal *m, PetscReal *coef);
+  PetscErrorCode           SetDeflationBase(SNES snes, Vec x);
+  // At the base of the Jacobian products: m, the undeflated residual F and grad m (deflated products
+  // m J v + (grad m . v) F).
+  PetscReal                defl_m_ = 0;
+  VecH                     deflF_, deflgU_, deflgdU_;
 };
 
 } // namespace squeal
