@@ -391,6 +391,8 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscCall(SNESSetType(snes_, SNESNEWTONLS));
   PetscCall(SNESGetLineSearch(snes_, &ls));
   PetscCall(SNESLineSearchSetType(ls, SNESLINESEARCHBASIC)); // the talk's plain Newton
+  // Solve switches to backtracking when deflating, unless the line search is given here.
+  PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_linesearch_type", &linesearch_given_));
   PetscCall(SNESGetKSP(snes_, &ksp));
   PetscCall(KSPSetType(ksp, KSPGMRES));
   PetscCall(KSPGetPC(ksp, &pc));
@@ -1430,14 +1432,11 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       PetscCall(SNESKSPSetParametersEW(snes_, PETSC_DEFAULT, 0.1, 0.1, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
     }
   }
-  {
-    // Deflated, the residual's norm has no minimum at Z_e any more: globalise on it (backtracking),
-    // unless the line search was chosen (without deflation the basic one is the talk's plain Newton).
-    PetscBool      set = PETSC_FALSE;
+  if (!linesearch_given_) {
+    // Deflated, the residual's norm has no minimum at Z_e any more: globalise on it.
     SNESLineSearch ls;
-    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_linesearch_type", &set));
     PetscCall(SNESGetLineSearch(snes_, &ls));
-    if (!set) PetscCall(SNESLineSearchSetType(ls, deflate_power > 0 ? SNESLINESEARCHBT : SNESLINESEARCHBASIC));
+    PetscCall(SNESLineSearchSetType(ls, deflate_power > 0 ? SNESLINESEARCHBT : SNESLINESEARCHBASIC));
   }
   Mlin_.resize(0, 0);
   {

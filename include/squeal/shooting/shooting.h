@@ -224,6 +224,7 @@ private:
   PetscReal                z_e_dist0_ = 0;
   VecH                     Ue_;
   PetscReal                dist0_ = 0;
+  PetscBool                linesearch_given_ = PETSC_FALSE; // -shoot_snes_linesearch_type at SetFromOptions
   PetscErrorCode           EquilibriumDistance(Vec U, Vec dU, PetscReal *d); // weighted; U - U_e left in tmp_
   PetscErrorCode           Deflation(Vec U, Vec dU, PetscReal *m, PetscReal *coef);
   PetscErrorCode           SetDeflationBase(SNES snes, Vec x);
