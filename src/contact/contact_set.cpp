@@ -52,11 +52,19 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
                    "tbn"[dir], en.first, N);
         PetscCheck(!PetscIsInfOrNanReal(en.second), comm, kErrInput,
                    "contact %" PetscInt_FMT ": column %c entry at DOF %" PetscInt_FMT " is not finite", c, "tbn"[dir], en.first);
+        // The pivot choice and the energy estimate read raw entries: one entry per DOF and column.
+        auto it = owner.find(en.first);
+        PetscCheck(it == owner.end() || it->second != c, comm, kErrInput,
+                   "contact %" PetscInt_FMT ": column %c has an explicit entry at DOF %" PetscInt_FMT
+                   ", which its nodes already use; give the column either nodes or explicit entries there",
+                   c, "tbn"[dir], en.first);
         seen.push_back(en.first);
       }
       std::sort(seen.begin(), seen.end());
-      PetscCheck(std::adjacent_find(seen.begin(), seen.end()) == seen.end(), comm, kErrInput,
-                 "contact %" PetscInt_FMT ": column %c lists a DOF twice; give each DOF one entry", c, "tbn"[dir]);
+      const auto twice = std::adjacent_find(seen.begin(), seen.end());
+      PetscCheck(twice == seen.end(), comm, kErrInput,
+                 "contact %" PetscInt_FMT ": column %c lists DOF %" PetscInt_FMT " twice; give each DOF one entry", c, "tbn"[dir],
+                 twice == seen.end() ? -1 : *twice);
     }
     PetscCheck(p.t.allFinite() && p.n.allFinite(), comm, kErrInput, "contact %" PetscInt_FMT ": frame is not finite", c);
     // Accept frames written with a few digits; reject ones that are plainly wrong.
@@ -103,6 +111,10 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
           auto it = normal.find(e.first);
           if (it != normal.end()) dots[it->second.first] += it->second.second * e.second;
         }
+        // A zero h_t (or h_b with planar friction) gives W_tt = 0 and an infinite rho in the local solver.
+        PetscCheck(hh > 0 || (dir == kB && law == FrictionLaw::Rectilinear), comm, kErrInput,
+                   "contact %" PetscInt_FMT ": the %s column h_%c is zero; friction needs it (give its entries)", c,
+                   dir == kT ? "tangential" : "binormal", "tbn"[dir]);
         for (const auto &d : dots)
           PetscCheck(std::abs(d.second) <= 1e-10 * std::sqrt(nn[d.first] * hh), comm, kErrInput,
                      "contact %" PetscInt_FMT ": column %c is not orthogonal to the normal column of contact %" PetscInt_FMT

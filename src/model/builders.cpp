@@ -172,10 +172,14 @@ PetscErrorCode ReadColumnsRow(MPI_Comm comm, const char *path, int lineno, std::
   pt.n            = {v[3], v[4], v[5]};
   pt.speed_factor = v[6];
   pt.g0           = v[7];
-  size_t count[3], total = 0;
+  static const char *const count_name[3] = {"n_t", "n_b", "n_n"};
+  size_t                   count[3], total = 0;
   for (int d = 0; d < 3; ++d) {
-    PetscCheck(v[8 + d] >= 0 && v[8 + d] == std::floor(v[8 + d]), comm, PETSC_ERR_FILE_UNEXPECTED,
-               "contact table '%s', line %d: entry count %g is not a non-negative integer", path, lineno, v[8 + d]);
+    // Bounded by the values on the line before the cast, so no count can overflow the sum.
+    PetscCheck(v[8 + d] >= 0 && v[8 + d] == std::floor(v[8 + d]) && v[8 + d] <= (double)(v.size() - 11) / 2, comm,
+               PETSC_ERR_FILE_UNEXPECTED,
+               "contact table '%s', line %d: entry count %s = %g is not a non-negative integer within the %d value pairs of the row",
+               path, lineno, count_name[d], v[8 + d], (int)((v.size() - 11) / 2));
     count[d] = (size_t)v[8 + d];
     total += count[d];
   }
@@ -185,8 +189,8 @@ PetscErrorCode ReadColumnsRow(MPI_Comm comm, const char *path, int lineno, std::
   size_t at = 11;
   for (int d = 0; d < 3; ++d)
     for (size_t e = 0; e < count[d]; ++e, at += 2) {
-      PetscCheck(v[at] == std::floor(v[at]), comm, PETSC_ERR_FILE_UNEXPECTED,
-                 "contact table '%s', line %d: DOF index %g is not an integer", path, lineno, v[at]);
+      PetscCheck(v[at] == std::floor(v[at]) && v[at] >= 0 && v[at] < (double)PETSC_MAX_INT, comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "contact table '%s', line %d: DOF index %g is not a non-negative integer", path, lineno, v[at]);
       pt.cols[d].emplace_back((PetscInt)v[at], v[at + 1]);
     }
   set.points.push_back(pt);

@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -245,15 +246,72 @@ TEST(ExplicitColumns, ValidationNamesEachBrokenRule)
   ContactSet shared = ExplicitSet(); // a second point whose h_n holds point 0's pivot
   ContactPoint q;
   q.cols[kN] = {{1, 1.0}, {0, 0.5}};
+  q.cols[kT] = {{2, 1.0}}, q.cols[kB] = {{3, 1.0}};
   shared.points.push_back(q);
   EXPECT_TRUE(refused(shared, 4));
   ContactSet skew = ExplicitSet(); // point 0's h_t touches point 1's normal DOF
   ContactPoint r;
   r.cols[kN] = {{1, 1.0}};
+  r.cols[kT] = {{2, 1.0}}, r.cols[kB] = {{3, 1.0}};
   skew.points.push_back(r);
   EXPECT_EQ(Quietly([&] { return skew.Validate(PETSC_COMM_WORLD, 4); }), 0);
   skew.points[0].cols[kT].push_back({1, 0.1});
   EXPECT_TRUE(refused(skew, 4));
+  ContactSet no_t = ExplicitSet(); // W_tt = 0: an infinite rho in the local solver
+  no_t.points[0].cols[kT].clear();
+  EXPECT_TRUE(refused(no_t, 4));
+  ContactSet no_b = ExplicitSet(); // needed by planar friction only
+  no_b.points[0].cols[kB].clear();
+  EXPECT_TRUE(refused(no_b, 4));
+  no_b.law = FrictionLaw::Rectilinear;
+  EXPECT_EQ(Quietly([&] { return no_b.Validate(PETSC_COMM_WORLD, 4); }), 0);
+  ContactSet mixed = ExplicitSet(); // an explicit entry on a DOF the point's node already holds
+  mixed.points[0].cols[kN].clear();
+  mixed.points[0].nodes = {ContactNode{{0, 1, 4}, 1.0}};
+  EXPECT_EQ(Quietly([&] { return mixed.Validate(PETSC_COMM_WORLD, 5); }), 0);
+  mixed.points[0].cols[kN] = {{4, 0.5}};
+  EXPECT_TRUE(refused(mixed, 5));
+}
+
+TEST(ExplicitColumns, MalformedColumnRowsAreRefused)
+{
+  // Each row alone in a table: truncated, counts that do not match the pairs, a count too large to
+  // sum (2^63), a count that is not an integer, a NaN, a negative or non-integer DOF index.
+  const char *rows[] = {
+    "cols 1 0 0 0 0 1 1 0 1 0 1 2 0.5",
+    "cols 1 0 0 0 0 1 1 0 1 0 1 2 0.5 0 1 5 1",
+    "cols 1 0 0 0 0 1 1 0 9223372036854775808 0 0",
+    "cols 1 0 0 0 0 1 1 0 1.5 0 1 2 0.5 0 1",
+    "cols 1 0 0 0 0 1 1 0 inf 0 1 2 0.5 0 1",
+    "cols 1 0 0 0 0 1 1 0 1 0 1 2 nan 0 1",
+    "cols 1 0 0 0 0 1 1 0 1 0 1 -2 0.5 0 1",
+    "cols 1 0 0 0 0 1 1 0 1 0 1 2.5 0.5 0 1",
+  };
+  int pid = (int)getpid();
+  MPI_Bcast(&pid, 1, MPI_INT, 0, PETSC_COMM_WORLD);
+  int rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  const std::string path = "test_malformed_columns_" + std::to_string(pid) + ".txt";
+  for (const char *row : rows) {
+    if (rank == 0) {
+      std::FILE *f = std::fopen(path.c_str(), "w");
+      ASSERT_NE(f, nullptr);
+      std::fprintf(f, "%s\n", row);
+      std::fclose(f);
+    }
+    MPI_Barrier(PETSC_COMM_WORLD);
+    ContactSet cs;
+    // A row that reads must still fail validation (a NaN value); none may be accepted.
+    const PetscErrorCode ierr = Quietly([&]() -> PetscErrorCode {
+      PetscFunctionBeginUser;
+      PetscCall(ReadContactTable(PETSC_COMM_WORLD, path.c_str(), cs));
+      PetscCall(cs.Validate(PETSC_COMM_WORLD, 8));
+      PetscFunctionReturn(0);
+    });
+    EXPECT_NE(ierr, 0) << row;
+    MPI_Barrier(PETSC_COMM_WORLD);
+  }
+  if (rank == 0) std::remove(path.c_str());
 }
 
 TEST(ExplicitColumns, ContactTableRoundTripKeepsEveryColumn)
