@@ -2,6 +2,7 @@
 // model (craig_bampton.h). References: the full model's unstable eigenvalues (the error must fall
 // as the in-plane basis grows), the plain Craig-Bampton model (k = 2 n_c is an exact change of
 // basis), the same model written and read back, and hand-made contact sets that break one rule each.
+#include "reduction_helpers.h"
 #include "squeal/model/builders.h"
 #include "squeal/model/pad.h"
 #include "squeal/energy/energy.h"
@@ -22,51 +23,11 @@
 #include <string>
 
 using namespace squeal;
+using test::MaxRelError;
+using test::SmallPad;
+using test::Unstable;
 
 namespace {
-
-PadParams SmallPad()
-{
-  PadParams p;
-  p.n_r = 3, p.n_t = 12, p.n_fric = 1, p.n_steel = 1;
-  p.mu = 0.3, p.V = 10;
-  return p;
-}
-
-// Unstable eigenvalues (sigma + i omega) of a model, most unstable first.
-std::vector<std::complex<double>> Unstable(Model &model, PetscInt nev = 12)
-{
-  EquilibriumSolver                 eqs(model.comm());
-  StabilitySolver                   stab(model.comm());
-  SlidingEquilibrium                eq;
-  StabilityResult                   res;
-  std::vector<std::complex<double>> out;
-  EXPECT_EQ(PetscOptionsSetValue(nullptr, "-eq_mat_mumps_icntl_14", "200"), 0);
-  EXPECT_EQ(eqs.SetFromOptions(), 0);
-  EXPECT_EQ(PetscOptionsSetValue(nullptr, "-stab_pep_nev", std::to_string(nev).c_str()), 0);
-  EXPECT_EQ(stab.SetFromOptions(), 0);
-  EXPECT_EQ(PetscOptionsClearValue(nullptr, "-stab_pep_nev"), 0);
-  const bool failed = eqs.Solve(model, eq) || stab.Solve(model, eq, res);
-  EXPECT_EQ(PetscOptionsClearValue(nullptr, "-eq_mat_mumps_icntl_14"), 0);
-  if (failed) {
-    ADD_FAILURE() << "equilibrium or stability failed";
-    return out;
-  }
-  for (PetscInt i : res.unstable) out.emplace_back(res.modes[i].sigma, res.modes[i].omega);
-  return out;
-}
-
-// Largest relative distance from each reference eigenvalue to the nearest one of `got`.
-double MaxRelError(const std::vector<std::complex<double>> &ref, const std::vector<std::complex<double>> &got)
-{
-  double worst = 0;
-  for (auto r : ref) {
-    double best = 1e300;
-    for (auto g : got) best = std::min(best, std::abs(g - r) / std::abs(r));
-    worst = std::max(worst, best);
-  }
-  return worst;
-}
 
 PetscErrorCode Reduce(const Model &full, PetscReal fmax, PetscInt k, Model &red, ReductionInfo *info = nullptr)
 {
