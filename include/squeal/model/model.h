@@ -7,7 +7,10 @@
 
 #include "squeal/contact/contact_set.h"
 #include "squeal/core/handle.h"
+#include "squeal/io/fe_mesh.h"
 
+#include <functional>
+#include <memory>
 #include <string>
 
 namespace squeal {
@@ -24,6 +27,12 @@ public:
   MatH        M, C, K; // C may be empty: no viscous damping
   VecH        F;
   ContactSet  contacts;
+
+  // The FE mesh the model was read from, if any (its dof map indexes the full model's DOFs).
+  std::shared_ptr<const io::FeMesh> mesh;
+  // For a reduced model: u_full = T u (the reduction basis), into a Vec of mesh->full_size
+  // entries that the callee creates. Empty for a full model, where u itself is on the mesh.
+  std::function<PetscErrorCode(Vec u, Vec *u_full)> expand;
 
   // Checks what the physics needs: matching sizes, finite entries, symmetric M, C, K, positive
   // mass diagonal, non-negative stiffness and damping diagonals, a valid contact set. Every
