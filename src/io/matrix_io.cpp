@@ -1,4 +1,5 @@
 #include "squeal/io/matrix_io.h"
+#include "text_io.h"
 
 #include <petscviewer.h>
 
@@ -25,10 +26,7 @@ namespace squeal::io {
 
 namespace {
 
-struct Entry {
-  PetscInt    row, col;
-  PetscScalar val;
-};
+using namespace detail;
 
 struct Header {
   bool      coordinate = false, symmetric = false, integer = false;
@@ -41,19 +39,6 @@ bool HasMtxExtension(const char *path)
   const size_t n    = std::strlen(path);
   auto         same = [](char a, char b) { return std::tolower((unsigned char)a) == b; };
   return n >= 4 && std::equal(path + n - 4, path + n, ".mtx", same);
-}
-
-// A file visible to some ranks only (node-local disk) must still fail on all ranks at once.
-PetscErrorCode CheckReadable(MPI_Comm comm, const char *path)
-{
-  PetscBool   found;
-  PetscMPIInt here, everywhere;
-  PetscFunctionBeginUser;
-  PetscCall(PetscTestFile(path, 'r', &found));
-  here = found ? 1 : 0;
-  PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, comm));
-  PetscCheck(everywhere, comm, PETSC_ERR_FILE_OPEN, "matrix file '%s' not found (or not a readable file)", path);
-  PetscFunctionReturn(0);
 }
 
 // Only rank 0 writes, but a bad path must fail on every rank: PETSc's binary viewer fails on rank 0
@@ -103,26 +88,6 @@ PetscErrorCode CheckBinaryHeader(MPI_Comm comm, const char *path)
              "matrix file '%s' is truncated: %lld bytes, but its header (%lld x %lld, %lld nonzeros) needs %lld", path, bytes,
              h[1], h[2], h[3], need);
   PetscFunctionReturn(0);
-}
-
-// Consumes one whitespace-separated token; false unless all of it is a T ("3x", "1.5" are not
-// indices). strtod, unlike operator>>, reads "nan" and "inf", so they are reported as such.
-template <class T>
-bool ReadNumber(const char *&p, T *v)
-{
-  char *end;
-  errno = 0;
-  if constexpr (std::is_integral_v<T>) *v = std::strtoll(p, &end, 10);
-  else *v = std::strtod(p, &end);
-  const bool ok = end != p && (*end == '\0' || std::isspace((unsigned char)*end)) && (!std::is_integral_v<T> || !errno);
-  p             = end;
-  return ok;
-}
-
-bool AtEnd(const char *p)
-{
-  while (std::isspace((unsigned char)*p)) ++p;
-  return *p == '\0';
 }
 
 bool NextDataLine(std::istream &in, std::string &line, long long &lineno)
@@ -179,16 +144,6 @@ PetscErrorCode ReadHeader(MPI_Comm comm, const char *path, std::istream &in, lon
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OwnedRange(MPI_Comm comm, PetscInt N, PetscInt *start, PetscInt *end)
-{
-  PetscLayout map;
-  PetscFunctionBeginUser;
-  PetscCall(PetscLayoutCreateFromSizes(comm, PETSC_DECIDE, N, 1, &map));
-  PetscCall(PetscLayoutGetRange(map, start, end));
-  PetscCall(PetscLayoutDestroy(&map));
-  PetscFunctionReturn(0);
-}
-
 } // namespace
 
 PetscErrorCode MatLoadMatrixMarket(MPI_Comm comm, const char *path, Mat *A)
@@ -200,10 +155,9 @@ PetscErrorCode MatLoadMatrixMarket(MPI_Comm comm, const char *path, Mat *A)
   Header                h;
   PetscInt              rstart, rend, cstart, cend;
   std::vector<Entry>    owned;
-  std::vector<PetscInt> dnz, onz;
   Mat                   B;
   PetscFunctionBeginUser;
-  PetscCall(CheckReadable(comm, path));
+  PetscCall(CheckReadable(comm, path, "matrix file"));
   PetscCallCXX(in.open(path));
   PetscCheck(in.is_open(), comm, PETSC_ERR_FILE_OPEN, "matrix file '%s' cannot be opened", path);
   PetscCall(ReadHeader(comm, path, in, lineno, &h));
@@ -250,26 +204,7 @@ PetscErrorCode MatLoadMatrixMarket(MPI_Comm comm, const char *path, Mat *A)
   PetscCheck(found == h.entries, comm, PETSC_ERR_FILE_UNEXPECTED, "matrix file '%s': header promises %lld entries, found %lld",
              path, h.entries, found);
 
-  // Repeated coordinates are summed, as scipy's and MATLAB's mmread do.
-  PetscCallCXX(std::sort(owned.begin(), owned.end(),
-                         [](const Entry &a, const Entry &b) { return a.row != b.row ? a.row < b.row : a.col < b.col; }));
-  size_t n = 0;
-  for (const Entry &e : owned) {
-    if (n > 0 && owned[n - 1].row == e.row && owned[n - 1].col == e.col) owned[n - 1].val += e.val;
-    else owned[n++] = e;
-  }
-  owned.resize(n);
-  PetscCallCXX(dnz.assign(rend - rstart, 0); onz.assign(rend - rstart, 0));
-  for (const Entry &e : owned) (e.col >= cstart && e.col < cend ? dnz : onz)[e.row - rstart]++;
-
-  PetscCall(MatCreate(comm, &B));
-  PetscCall(MatSetSizes(B, rend - rstart, cend - cstart, h.M, h.N));
-  PetscCall(MatSetType(B, MATAIJ));
-  PetscCall(MatXAIJSetPreallocation(B, 1, dnz.data(), onz.data(), nullptr, nullptr));
-  PetscCall(MatSetOption(B, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
-  for (const Entry &e : owned) PetscCall(MatSetValue(B, e.row, e.col, e.val, INSERT_VALUES));
-  PetscCall(MatAssemblyBegin(B, MAT_FINAL_ASSEMBLY));
-  PetscCall(MatAssemblyEnd(B, MAT_FINAL_ASSEMBLY));
+  PetscCall(detail::AssembleOwnedEntries(comm, h.M, h.N, owned, &B));
   *A = B;
   PetscFunctionReturn(0);
 }
@@ -325,7 +260,7 @@ PetscErrorCode MatLoadFromFile(MPI_Comm comm, const char *path, Mat *A)
     PetscCall(MatLoadMatrixMarket(comm, path, A));
     PetscFunctionReturn(0);
   }
-  PetscCall(CheckReadable(comm, path));
+  PetscCall(CheckReadable(comm, path, "matrix file"));
   PetscCall(CheckBinaryHeader(comm, path));
   PetscCall(OpenBinaryViewer(comm, path, FILE_MODE_READ, &viewer));
   PetscCall(MatCreate(comm, &B));
@@ -529,5 +464,64 @@ PetscErrorCode OpenBinaryViewer(MPI_Comm comm, const char *path, PetscFileMode m
   PetscCall(PetscViewerFileSetName(*viewer, path));
   PetscFunctionReturn(0);
 }
+
+namespace detail {
+
+// A file visible to some ranks only (node-local disk) must still fail on all ranks at once.
+PetscErrorCode CheckReadable(MPI_Comm comm, const char *path, const char *what)
+{
+  PetscBool   found;
+  PetscMPIInt here, everywhere;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTestFile(path, 'r', &found));
+  here = found ? 1 : 0;
+  PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, comm));
+  PetscCheck(everywhere, comm, PETSC_ERR_FILE_OPEN, "%s '%s' not found (or not a readable file)", what, path);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OwnedRange(MPI_Comm comm, PetscInt N, PetscInt *start, PetscInt *end)
+{
+  PetscLayout map;
+  PetscFunctionBeginUser;
+  PetscCall(PetscLayoutCreateFromSizes(comm, PETSC_DECIDE, N, 1, &map));
+  PetscCall(PetscLayoutGetRange(map, start, end));
+  PetscCall(PetscLayoutDestroy(&map));
+  PetscFunctionReturn(0);
+}
+
+// Repeated coordinates are summed, as scipy's and MATLAB's mmread do.
+PetscErrorCode AssembleOwnedEntries(MPI_Comm comm, PetscInt M, PetscInt N, std::vector<Entry> &owned, Mat *A)
+{
+  PetscInt              rstart, rend, cstart, cend;
+  std::vector<PetscInt> dnz, onz;
+  Mat                   B;
+  PetscFunctionBeginUser;
+  PetscCall(OwnedRange(comm, M, &rstart, &rend));
+  PetscCall(OwnedRange(comm, N, &cstart, &cend));
+  PetscCallCXX(std::sort(owned.begin(), owned.end(),
+                         [](const Entry &a, const Entry &b) { return a.row != b.row ? a.row < b.row : a.col < b.col; }));
+  size_t n = 0;
+  for (const Entry &e : owned) {
+    if (n > 0 && owned[n - 1].row == e.row && owned[n - 1].col == e.col) owned[n - 1].val += e.val;
+    else owned[n++] = e;
+  }
+  owned.resize(n);
+  PetscCallCXX(dnz.assign(rend - rstart, 0); onz.assign(rend - rstart, 0));
+  for (const Entry &e : owned) (e.col >= cstart && e.col < cend ? dnz : onz)[e.row - rstart]++;
+
+  PetscCall(MatCreate(comm, &B));
+  PetscCall(MatSetSizes(B, rend - rstart, cend - cstart, M, N));
+  PetscCall(MatSetType(B, MATAIJ));
+  PetscCall(MatXAIJSetPreallocation(B, 1, dnz.data(), onz.data(), nullptr, nullptr));
+  PetscCall(MatSetOption(B, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+  for (const Entry &e : owned) PetscCall(MatSetValue(B, e.row, e.col, e.val, INSERT_VALUES));
+  PetscCall(MatAssemblyBegin(B, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(B, MAT_FINAL_ASSEMBLY));
+  *A = B;
+  PetscFunctionReturn(0);
+}
+
+} // namespace detail
 
 } // namespace squeal::io

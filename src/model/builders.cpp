@@ -5,6 +5,8 @@
 #include "squeal/core/options.h"
 #include "squeal/core/sparse.h"
 #include "squeal/io/matrix_io.h"
+#include "squeal/io/calculix.h"
+#include "squeal/model/fe_contact.h"
 
 #include <petscviewerhdf5.h>
 
@@ -364,9 +366,124 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// The contact_ options of a model whose contact comes from its geometry (fe_contact.h).
+PetscErrorCode FacePairingOptions(MPI_Comm comm, FacePairing &f, PetscBool help)
+{
+  const char *const modes[] = {"node", "surface", "auto"};
+  PetscInt          mode    = (PetscInt)f.mode, n;
+  char              buf[256];
+  PetscBool         set;
+  PetscReal         v[3];
+  OptionChecks      checks;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "contact_", "Contact from the FE geometry (-model_type calculix)", "PairContactFaces");
+  PetscCall(PetscOptionsString("-pad_set", "Node set of the pad's friction face", "PairContactFaces", f.pad_set.c_str(), buf,
+                               sizeof(buf), &set));
+  if (set) f.pad_set = buf;
+  PetscCall(PetscOptionsString("-disc_set", "Node set of the disc's face that the pad touches", "PairContactFaces", f.disc_set.c_str(),
+                               buf, sizeof(buf), &set));
+  if (set) f.disc_set = buf;
+  struct {
+    const char      *opt, *text;
+    Eigen::Vector3d *dst;
+  } vecs[] = {{"-axis", "Rotation axis of the disc (x,y,z); the disc turns positively about it", &f.axis},
+              {"-axis_point", "A point of the rotation axis (x,y,z, m)", &f.axis_point}};
+  for (auto &a : vecs) {
+    n = 3;
+    for (int k = 0; k < 3; ++k) v[k] = (*a.dst)(k);
+    PetscCall(PetscOptionsRealArray(a.opt, a.text, "PairContactFaces", v, &n, &set));
+    PetscCheck(!set || n == 3, comm, kErrInput, "option -contact_%s needs three comma-separated numbers, got %" PetscInt_FMT, a.opt + 1, n);
+    if (set) *a.dst = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+  SquealOptionsReal("-r_ref", "Radius at which the disc's speed is -contact_v (m); <= 0: mean radius of the pad face", "PairContactFaces",
+                    &f.r_ref, Range::Any(), checks);
+  SquealOptionsReal("-pair_tol", "Largest pad-to-disc distance of a contact pair (m)", "PairContactFaces", &f.tol, Range::NonNegative(),
+                    checks);
+  PetscCall(PetscOptionsEList("-pairing", "Pairs: node (conforming faces), surface (projection on disc facets), auto (node where one is "
+                              "within the tolerance)", "PairContactFaces", modes, 3, modes[mode], &mode, nullptr));
+  PetscOptionsEnd();
+  PetscCall(checks.Run(comm));
+  (void)help;
+  f.mode = (FacePairing::Mode)mode;
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &model)
+{
+  auto          mesh = std::make_shared<io::FeMesh>();
+  PetscInt      skipped = 0;
+  PairingReport rep;
+  PetscFunctionBeginUser;
+  PetscCheck(!s.job.empty(), comm, kErrInput, "a CalculiX model needs -model_ccx_job STEM (STEM.inp, STEM.sti, STEM.mas, STEM.dof)");
+  PetscCheck(std::isfinite(s.ray_a) && std::isfinite(s.ray_b) && s.ray_a >= 0 && s.ray_b >= 0, comm, kErrInput,
+             "Rayleigh factors -model_rayleigh_a %g, -model_rayleigh_b %g: expected finite and >= 0", (double)s.ray_a, (double)s.ray_b);
+  const std::string inp = s.job + ".inp", dof = s.job + ".dof", sti = s.job + ".sti", mas = s.job + ".mas";
+  PetscCall(io::ReadCalculixDeck(comm, inp.c_str(), *mesh, &skipped));
+  PetscCall(io::ReadCalculixDofMap(comm, dof.c_str(), *mesh));
+  const PetscInt N = mesh->full_size;
+  PetscCall(io::MatLoadCalculix(comm, sti.c_str(), N, model.K.out()));
+  PetscCall(io::MatLoadCalculix(comm, mas.c_str(), N, model.M.out()));
+  if (s.ray_a > 0 || s.ray_b > 0) {
+    PetscCall(MatDuplicate(model.K, MAT_COPY_VALUES, model.C.out()));
+    PetscCall(MatScale(model.C, s.ray_b));
+    PetscCall(MatAXPY(model.C, s.ray_a, model.M, DIFFERENT_NONZERO_PATTERN));
+  } else model.C.reset();
+
+  // Preload: a pressure on a face and/or a load vector in the .dof numbering.
+  std::vector<PetscReal> F(N, 0.0);
+  Eigen::Vector3d        total = Eigen::Vector3d::Zero();
+  if (s.pressure != 0) PetscCall(AddPressureLoad(comm, *mesh, s.pressure_set, s.pressure, F, &total));
+  PetscCall(io::VecCreateFromValues(comm, F, model.F.out()));
+  if (!s.load.empty()) {
+    VecH L;
+    PetscInt nL;
+    PetscCall(io::VecLoadFromFile(comm, s.load.c_str(), L.out()));
+    PetscCall(VecGetSize(L, &nL));
+    PetscCheck(nL == N, comm, kErrInput, "load vector '%s' has %" PetscInt_FMT " entries; the .dof map '%s' has %" PetscInt_FMT " DOFs",
+               s.load.c_str(), nL, dof.c_str(), N);
+    Vec Fl;
+    PetscCall(VecDuplicate(model.F, &Fl));
+    PetscCall(VecCopy(L, Fl)); // same global size; VecCopy needs the same layout, which PETSC_DECIDE gives both
+    PetscCall(VecAXPY(model.F, 1.0, Fl));
+    PetscCall(VecDestroy(&Fl));
+  }
+  {
+    // F in the layout of K's rows.
+    Vec Fk;
+    PetscCall(MatCreateVecs(model.K, nullptr, &Fk));
+    PetscCall(VecCopy(model.F, Fk));
+    PetscCall(VecDestroy(model.F.out()));
+    *model.F.out() = Fk;
+  }
+  PetscCall(PairContactFaces(comm, *mesh, s.pairing, model.contacts, &rep));
+  model.contacts.law = s.law;
+  model.contacts.mu  = s.mu;
+  model.contacts.V   = s.V;
+  model.name         = "calculix:" + s.job;
+  model.mesh         = mesh;
+  PetscCall(model.Validate());
+  if (s.verbose) {
+    PetscCall(PetscPrintf(PETSC_COMM_SELF,
+                          "CalculiX model '%s': %zu nodes, %" PetscInt_FMT " DOFs, %" PetscInt_FMT " contact pairs (%" PetscInt_FMT
+                          " node-to-node, %" PetscInt_FMT " node-to-surface, largest distance %.3g m), r_ref = %.6g m",
+                          s.job.c_str(), mesh->x.size(), N, model.contacts.Size(), rep.node_pairs, rep.surface_pairs,
+                          (double)rep.max_distance, (double)rep.r_ref));
+    if (s.pressure != 0)
+      PetscCall(PetscPrintf(PETSC_COMM_SELF, ", pressure %g Pa on %s: force (%.6g, %.6g, %.6g) N", (double)s.pressure, s.pressure_set.c_str(),
+                            total(0), total(1), total(2)));
+    if (skipped) PetscCall(PetscPrintf(PETSC_COMM_SELF, ", %" PetscInt_FMT " non-solid element(s) not drawn", skipped));
+    PetscCall(PetscPrintf(PETSC_COMM_SELF, "\n"));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir, bool *reduced)
 {
-  const char *const types[] = {"three_dof", "chain", "file", "pad"};
+  const char *const types[] = {"three_dof", "chain", "file", "pad", "calculix"};
   const char *const laws[]  = {"planar", "rectilinear"};
   const char *const frames[] = {"sliding", "spring"};
   PetscInt          type = 0, law = 0, frame = 0;
@@ -374,6 +491,7 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   ThreeDofParams   &p = ch.cell;
   FileModelSpec     fs;
   PadParams         pad;
+  CalculixModelSpec ccx;
   char              buf[PETSC_MAX_PATH_LEN] = "";
   char              exportdir[PETSC_MAX_PATH_LEN] = "";
   PetscBool         help = PETSC_FALSE, set;
@@ -391,8 +509,8 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   PetscCall(checks.Run(comm));
 
   PetscOptionsBegin(comm, "model_", "Structural model", "Model");
-  PetscCall(PetscOptionsEList("-type", "Model: three_dof (reference system), chain (synthetic multi-contact), file, pad (FE brake pad)",
-                              "ModelCreateFromOptions", types, 4, types[type], &type, nullptr));
+  PetscCall(PetscOptionsEList("-type", "Model: three_dof (reference system), chain (synthetic multi-contact), file, pad (FE brake pad), calculix (CalculiX deck and matrices)",
+                              "ModelCreateFromOptions", types, 5, types[type], &type, nullptr));
   if (type == 0 || type == 1 || help) {
     SquealOptionsReal("-m", "Mass (kg)", "BuildThreeDof", &p.m, Range::Positive(), checks);
     SquealOptionsReal("-k1", "Spring 1 stiffness projected on x (N/m)", "BuildThreeDof", &p.k1, Range::Positive(), checks);
@@ -439,10 +557,29 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
     }
   }
   if (type == 3 || help) PetscCall(PadOptions(PetscOptionsObject, pad, checks));
+  if (type == 4 || help) {
+    buf[0] = '\0';
+    PetscCall(PetscOptionsString("-ccx_job", "CalculiX job STEM: reads STEM.inp (mesh, node sets) and STEM.sti, STEM.mas, STEM.dof "
+                                 "(*FREQUENCY, SOLVER=MATRIXSTORAGE)", "BuildCalculix", buf, buf, sizeof(buf), &set));
+    if (set) ccx.job = buf;
+    SquealOptionsReal("-ccx_rayleigh_a", "CalculiX model: Rayleigh damping C = a M + b K, mass factor a (1/s)", "BuildCalculix",
+                      &ccx.ray_a, Range::NonNegative(), checks);
+    SquealOptionsReal("-ccx_rayleigh_b", "CalculiX model: Rayleigh stiffness factor b (s)", "BuildCalculix", &ccx.ray_b,
+                      Range::NonNegative(), checks);
+    SquealOptionsReal("-ccx_pressure", "CalculiX model: preload pressure (Pa) on the faces of -model_ccx_pressure_set, pushing into the body",
+                      "BuildCalculix", &ccx.pressure, Range::Any(), checks);
+    PetscCall(PetscOptionsString("-ccx_pressure_set", "CalculiX model: node set whose faces carry -model_ccx_pressure", "BuildCalculix",
+                                 ccx.pressure_set.c_str(), buf, sizeof(buf), &set));
+    if (set) ccx.pressure_set = buf;
+    PetscCall(PetscOptionsString("-ccx_load", "CalculiX model: load vector in the .dof numbering (formats as -model_load), added to the pressure",
+                                 "BuildCalculix", "", buf, sizeof(buf), &set));
+    if (set) ccx.load = buf;
+  }
   PetscCall(PetscOptionsString("-export", "Write the built model (M, C, K, F, contacts.txt) to this directory", "Model::Export",
                                exportdir, exportdir, sizeof(exportdir), nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm));
+  if (type == 4 || help) PetscCall(FacePairingOptions(comm, ccx.pairing, help));
 
   p.law          = law == 0 ? FrictionLaw::Planar : FrictionLaw::Rectilinear;
   p.spring_frame = frame == 1;
@@ -452,10 +589,19 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   pad.mu         = p.mu;
   pad.V          = p.V;
   pad.law        = p.law;
+  {
+    PetscMPIInt wrank;
+    PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &wrank));
+    ccx.verbose = wrank == 0;
+  }
+  ccx.mu         = p.mu;
+  ccx.V          = p.V;
+  ccx.law        = p.law;
   switch (type) {
   case 0: PetscCall(BuildThreeDof(comm, p, model)); break;
   case 1: PetscCall(BuildChain(comm, ch, model)); break;
   case 3: PetscCall(BuildPad(comm, pad, model)); break;
+  case 4: PetscCall(BuildCalculix(comm, ccx, model)); break;
   default: PetscCall(BuildFromFiles(comm, fs, model)); break;
   }
   // -reduce_type craig_bampton replaces the validated full model by its reduction; the sweep,

@@ -1,6 +1,7 @@
 // Builders: every way a model enters squeal. All produce the same Model (model.h).
 #pragma once
 
+#include "squeal/model/fe_contact.h"
 #include "squeal/model/model.h"
 
 namespace squeal {
@@ -46,6 +47,24 @@ struct FileModelSpec {
 };
 PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &model);
 
+// A model straight from CalculiX (docs/fe-workflow.md): the mesh and node sets of job.inp, K and M
+// from job.sti and job.mas, the DOF numbering of job.dof (io/calculix.h); damping a M + b K; the
+// preload from a pressure on the faces of a node set and/or a load vector in the .dof numbering;
+// the contact points from the geometry of the pad and disc faces (fe_contact.h). The model
+// carries its mesh (Model::mesh) for results on the mesh.
+struct CalculixModelSpec {
+  std::string job;                                  // STEM of STEM.inp, .sti, .mas, .dof
+  PetscReal   ray_a = 0, ray_b = 0;                 // Rayleigh factors
+  PetscReal   pressure = 0;                         // Pa, on the faces of pressure_set
+  std::string pressure_set = "PAD_BACK";
+  std::string load;                                 // optional load vector file
+  FacePairing pairing;
+  PetscReal   mu = 0.5, V = 1.0;
+  FrictionLaw law     = FrictionLaw::Planar;
+  bool        verbose = false;                      // one summary line on stdout
+};
+PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &model);
+
 // Contact table, one point per line ('#' starts a comment):
 //   x y z   tx ty tz   nx ny nz   [speed_factor [g0]]
 // x y z: 0-based global DOF indices of the node's translations; t: unit sliding direction;
@@ -62,7 +81,7 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
 PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set);
 PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactSet &set);
 
-// Reads -model_type (three_dof | chain | file) and the family's options, builds and validates.
+// Reads -model_type (three_dof | chain | file | pad | calculix) and the family's options, builds and validates.
 // Options: -model_* for the structure, -contact_mu, -contact_v, -contact_friction. The directory
 // given by -model_export (empty if none) is returned in export_dir; writing it is the caller's
 // choice (a sweep builds one model per rank and must not write it from every rank).
