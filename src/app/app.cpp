@@ -77,6 +77,32 @@ std::string DefaultOutput()
   return s.substr(0, s.find_last_of('.')) + ".h5";
 }
 
+// /mesh: what scripts/squeal_xdmf.py needs to put the results' vectors on the FE mesh.
+PetscErrorCode WriteMesh(const io::FeMesh &mesh, io::H5Writer &out)
+{
+  const hsize_t          n = mesh.x.size();
+  std::vector<PetscReal> x(3 * n);
+  std::vector<PetscInt>  dof(3 * n), ids(n);
+  PetscFunctionBeginUser;
+  for (hsize_t i = 0; i < n; ++i) {
+    ids[i] = (PetscInt)mesh.node_ids[i];
+    for (int k = 0; k < 3; ++k) x[3 * i + k] = mesh.x[i][k], dof[3 * i + k] = mesh.dof.empty() ? -1 : mesh.dof[i][k];
+  }
+  PetscCall(out.WriteArray("/mesh/x", {n, 3}, x.data()));
+  PetscCall(out.WriteIntArray("/mesh/dof", {n, 3}, dof.data()));
+  PetscCall(out.WriteIntArray("/mesh/node_ids", {n}, ids.data()));
+  for (const io::FeMesh::Block &b : mesh.blocks) {
+    std::vector<PetscInt> conn(b.conn.begin(), b.conn.end());
+    const std::string     path = "/mesh/cells/" + b.type;
+    PetscCall(out.WriteIntArray(path.c_str(), {conn.size() / b.nodes_per_cell, (hsize_t)b.nodes_per_cell}, conn.data()));
+  }
+  PetscCall(out.WriteAttribute("/mesh", "dof_meaning",
+                               "row of the model's vectors holding each node's x, y, z translation; -1: none (constrained, "
+                               "or not kept physical by a reduction)"));
+  PetscCall(out.WriteAttribute("/mesh", "partial", (PetscInt)mesh.partial));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode WriteModelInfo(const Model &model, io::H5Writer &out)
 {
   PetscFunctionBeginUser;
@@ -86,6 +112,7 @@ PetscErrorCode WriteModelInfo(const Model &model, io::H5Writer &out)
   PetscCall(out.WriteAttribute("/model", "mu", model.contacts.mu));
   PetscCall(out.WriteAttribute("/model", "V", model.contacts.V));
   PetscCall(out.WriteAttribute("/model", "friction", FrictionLawName(model.contacts.law)));
+  if (model.mesh) PetscCall(WriteMesh(*model.mesh, out));
   PetscFunctionReturn(0);
 }
 

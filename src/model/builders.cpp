@@ -622,6 +622,25 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
       model.C        = std::move(red.C);
       model.K        = std::move(red.K);
       model.F        = std::move(red.F);
+      // The mesh follows what stays physical: the contact nodes' DOFs (Craig-Bampton keeps them,
+      // renumbered in contact order). With interface reduction the in-plane DOFs are modal, and
+      // the modes and fixed-interface coordinates are not on the mesh at all: no expansion yet.
+      if (model.mesh && !red.contacts.HasExplicitColumns()) {
+        auto                          mesh = std::make_shared<io::FeMesh>(*model.mesh);
+        std::map<PetscInt, PetscInt> to_red;
+        for (size_t c = 0; c < model.contacts.points.size(); ++c)
+          for (size_t j = 0; j < model.contacts.points[c].nodes.size(); ++j)
+            for (int k = 0; k < 3; ++k)
+              to_red[model.contacts.points[c].nodes[j].dofs[k]] = red.contacts.points[c].nodes[j].dofs[k];
+        for (auto &d : mesh->dof)
+          for (PetscInt &i : d) {
+            auto it = to_red.find(i);
+            i       = it == to_red.end() ? -1 : it->second;
+          }
+        PetscCall(MatGetSize(red.K, &mesh->full_size, nullptr));
+        mesh->partial = true;
+        model.mesh    = mesh;
+      } else model.mesh.reset();
       model.contacts = red.contacts;
       model.name     = red.name;
     }

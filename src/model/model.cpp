@@ -217,6 +217,7 @@ PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst)
   else PetscCall(VecDestroy(&f0));
   dst.contacts = src.contacts;
   dst.name     = src.name;
+  dst.mesh     = src.mesh;
   PetscFunctionReturn(0);
 }
 

@@ -31,6 +31,9 @@ struct FeMesh {
   // FE code constrained or omitted it.
   std::vector<std::array<PetscInt, 3>> dof;
   PetscInt full_size = 0; // number of DOFs of the full model
+  // True when the dof map covers only some nodes (a reduced model keeps the contact nodes'
+  // DOFs physical; the other nodes have -1 and no value on the mesh).
+  bool partial = false;
 };
 
 } // namespace squeal::io
