@@ -637,7 +637,7 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
             auto it = to_red.find(i);
             i       = it == to_red.end() ? -1 : it->second;
           }
-        PetscCall(MatGetSize(red.K, &mesh->full_size, nullptr));
+        PetscCall(MatGetSize(model.K, &mesh->full_size, nullptr)); // red.K was moved there above
         mesh->partial = true;
         model.mesh    = mesh;
       } else model.mesh.reset();

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Run squeal on the brake example and check what it imported against the files themselves.
 
-Usage: check_brake.py DIR -- <command...>   (the command writes DIR/stability.h5)
+Usage: check_brake.py DIR [--reduced] -- <command...>   (the command writes DIR/stability.h5)
 
 DIR holds make_brake.py's brake_mesh.inp and ccx's brake.dof. Checks: exit 0; the model's DOFs
 are the .dof file's lines; its contact points are the PAD_FACE node set's nodes (conforming
@@ -15,8 +15,9 @@ import sys
 import h5py
 
 d = sys.argv[1]
+reduced = "--reduced" in sys.argv[:sys.argv.index("--")]
 cmd = sys.argv[sys.argv.index("--") + 1:]
-out = os.path.join(d, "stability.h5")
+out = os.path.join(d, "stability_reduced.h5" if reduced else "stability.h5")
 if os.path.exists(out):
     os.remove(out)
 rc = subprocess.call(cmd)
@@ -40,7 +41,15 @@ if rc == 0:
             pad.update(int(t) for t in line.replace(",", " ").split())
     with h5py.File(out, "r") as f:
         m = f["model"].attrs
-        check(int(m["dofs"]) == ndof, f"model DOFs {int(m['dofs'])} = rows of brake.dof {ndof}")
+        rows = f["mesh/dof"][()]
+        if reduced:
+            # Craig-Bampton keeps the pad- and disc-face nodes' DOFs physical, and only those.
+            check(int(f["mesh"].attrs["partial"]) == 1, "/mesh is partial")
+            check(int((rows >= 0).sum()) == 6 * len(pad), f"{int((rows >= 0).sum())} mesh rows = 2 x 3 x PAD_FACE nodes")
+            check(int(rows.max()) < int(m["dofs"]), "mesh rows inside the reduced model")
+        else:
+            check(int(m["dofs"]) == ndof, f"model DOFs {int(m['dofs'])} = rows of brake.dof {ndof}")
+            check(int((rows >= 0).sum()) == ndof, "every row of brake.dof on the mesh")
         check(int(m["contact_points"]) == len(pad), f"contact points {int(m['contact_points'])} = PAD_FACE nodes {len(pad)}")
         unstable = f["stability/unstable"][()]
         freq = f["stability/frequency"][()]
