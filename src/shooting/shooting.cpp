@@ -1651,12 +1651,19 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       for (size_t i = 0; i < m.size(); ++i)
         if ((PetscInt)i != trivial) others = std::max(others, std::abs(m[i]));
     };
+    PetscReal others = 0;
     if (!res.floquet.empty()) {
-      PetscReal others;
       classify(res.floquet, res.trivial, others);
       res.stable_cycle = others < 1;
     }
     if (!res.floquet_at_z0.empty()) classify(res.floquet_at_z0, res.trivial_at_z0, res.largest_at_z0);
+    if (!res.floquet.empty()) {
+      const FloquetVerdictResult v = FloquetVerdict(others, std::abs(res.floquet[res.trivial] - 1.0),
+                                                    res.floquet_at_z0.empty() ? 0.0 : std::abs(res.largest_at_z0 - others));
+      res.floquet_verdict = v.word;
+      res.floquet_margin  = v.margin;
+      res.floquet_error   = v.error;
+    }
     PetscCall(PetscLogEventEnd(ev_floquet, 0, 0, 0, 0));
   }
   res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
@@ -1708,10 +1715,17 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
                                                                                 : "pure sliding",
                                    100 * (double)res.frac_separated, 100 * (double)res.frac_stuck));
   if (!res.floquet.empty()) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (%s, %" PetscInt_FMT " phase(s) in one step): trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s\n",
+    std::string verdict = res.floquet_verdict == "undecided" ? "UNDECIDED" : res.stable_cycle ? "STABLE" : "UNSTABLE";
+    char        why[160];
+    std::snprintf(why, sizeof why, " (margin 1 - max |L| = %.2e %s error %.2e)", (double)res.floquet_margin,
+                  res.floquet_verdict == "undecided" ? "within the" : "beyond the", (double)res.floquet_error);
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (%s, %" PetscInt_FMT " phase(s) in one step): trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s%s\n",
                                      res.floquet_method.c_str(), res.floquet_phases,
                                      res.floquet[res.trivial].real(), res.floquet[res.trivial].imag(),
-                                     std::abs(res.floquet[res.trivial] - 1.0), res.stable_cycle ? "STABLE" : "UNSTABLE"));
+                                     std::abs(res.floquet[res.trivial] - 1.0), verdict.c_str(), why));
+    if (res.floquet_verdict == "undecided")
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  the multipliers' error is as large as the margin: refine -shoot_steps (the trivial "
+                                               "multiplier's distance from 1 falls with the step) before trusting the verdict\n"));
     for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
       PetscCall(PetscViewerASCIIPrintf(viewer, "  %2zu  %+.6f %+.6fi  |L| = %.6f%s\n", i, res.floquet[i].real(), res.floquet[i].imag(),
                                        std::abs(res.floquet[i]), (PetscInt)i == res.trivial ? "  (trivial)" : ""));
@@ -1757,12 +1771,23 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
   if (!res.floquet.empty()) {
+    PetscCall(out.WriteAttribute("/shooting", "floquet_verdict", res.floquet_verdict.c_str()));
+    PetscCall(out.WriteAttribute("/shooting", "floquet_margin", res.floquet_margin));
+    PetscCall(out.WriteAttribute("/shooting", "floquet_error", res.floquet_error));
+  }
+  if (!res.floquet.empty()) {
     PetscCall(out.WriteAttribute("/shooting/floquet", "method", res.floquet_method.c_str()));
     PetscCall(out.WriteAttribute("/shooting/floquet", "phases", res.floquet_phases));
   }
   PetscCall(out.WriteAttribute("/shooting/period", "units", "s"));
   PetscCall(out.WriteAttribute("/shooting/Z0", "layout", "(U, dU)"));
   PetscFunctionReturn(0);
+}
+
+FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread)
+{
+  const PetscReal margin = 1 - largest_nontrivial, error = std::max(trivial_error, phase_spread);
+  return {std::abs(margin) <= error ? "undecided" : margin > 0 ? "stable" : "unstable", margin, error};
 }
 
 } // namespace squeal

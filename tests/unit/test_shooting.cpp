@@ -674,3 +674,20 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   }
   VecDestroy(&U0), VecDestroy(&dU0);
 }
+
+// The verdict is only as good as the multipliers: a margin inside their error is "undecided".
+// Cases: the 2625-DOF pad's cycle (0.9743, trivial 1 + 1.8e-3), the half brake's CB-30 cycle
+// (1.000652, trivial 1 + 4.75e-4), and the same with a phase dependence of 1e-3.
+TEST(Floquet, VerdictIsUndecidedWhenTheMarginIsWithinTheError)
+{
+  FloquetVerdictResult v = FloquetVerdict(0.9743, 1.8e-3);
+  EXPECT_STREQ(v.word, "stable");
+  EXPECT_NEAR(v.margin, 0.0257, 1e-12);
+  EXPECT_EQ(v.error, 1.8e-3);
+  EXPECT_STREQ(FloquetVerdict(1.000652, 4.75e-4).word, "unstable");
+  v = FloquetVerdict(1.000652, 4.75e-4, 1e-3);
+  EXPECT_STREQ(v.word, "undecided");
+  EXPECT_EQ(v.error, 1e-3);
+  EXPECT_STREQ(FloquetVerdict(0.9995, 1e-3).word, "undecided");
+  EXPECT_STREQ(FloquetVerdict(1.0, 0.0).word, "undecided"); // exactly on the boundary: no verdict
+}

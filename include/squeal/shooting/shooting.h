@@ -67,12 +67,26 @@ struct ShootingResult {
   PetscInt                             trivial_at_z0 = -1;
   PetscReal                            largest_at_z0 = 0;  // largest non-trivial |L| at Z0
   PetscInt                             trivial = -1;       // index of the multiplier closest to 1
-  bool                                 stable_cycle = false;
+  bool                                 stable_cycle = false; // largest non-trivial |L| < 1 (see the verdict)
+  // The verdict with its error (FloquetVerdict below): "stable", "unstable" or "undecided".
+  std::string                          floquet_verdict;
+  PetscReal                            floquet_margin = 0, floquet_error = 0;
   std::vector<PetscReal>               orbit_t, orbit_U;   // one period, rank 0
   std::vector<PetscInt>                orbit_status;       // per step and point
   std::vector<PetscReal>               peak_to_peak;       // per DOF over the orbit
   PetscReal                            frac_separated = 0, frac_stuck = 0;
 };
+
+// The Floquet verdict carries its error. The trivial multiplier would be exactly 1 for an exact
+// monodromy, so |L_trivial - 1| measures the discretisation's error on the multipliers; where
+// the phase average and the Jacobian at Z0 disagree (a status change moving within its step),
+// their difference in the largest non-trivial |L| is an error too. The margin is
+// 1 - largest non-trivial |L|; the verdict is "undecided" when |margin| <= error.
+struct FloquetVerdictResult {
+  const char *word;
+  PetscReal   margin, error;
+};
+FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread = 0);
 
 class Shooting {
 public:
