@@ -424,13 +424,8 @@ PetscErrorCode ReadHDF5Vector(MPI_Comm comm, const char *path, const char *datas
 PetscErrorCode VecLoadFromFile(MPI_Comm comm, const char *path, Vec *v)
 {
   std::vector<PetscReal> x;
-  PetscBool              found;
-  PetscMPIInt            here, everywhere;
   PetscFunctionBeginUser;
-  PetscCall(PetscTestFile(path, 'r', &found));
-  here = found ? 1 : 0;
-  PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, comm));
-  PetscCheck(everywhere, comm, PETSC_ERR_FILE_OPEN, "load vector file '%s' not found (or not a readable file)", path);
+  PetscCall(detail::CheckReadable(comm, path, "load vector file"));
   if (HasExtension(path, ".h5") || HasExtension(path, ".hdf5")) PetscCall(ReadHDF5Vector(comm, path, "/F", x));
   else if (HasExtension(path, ".mtx")) PetscCall(ReadMatrixMarketVector(comm, path, x));
   else if (HasExtension(path, ".txt") || HasExtension(path, ".dat") || HasExtension(path, ".csv")) PetscCall(ReadTextColumn(comm, path, x));

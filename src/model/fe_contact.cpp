@@ -225,15 +225,22 @@ PetscErrorCode PairContactFaces(MPI_Comm comm, const io::FeMesh &mesh, const Fac
                "contact: pad %s of %s has constrained DOFs (absent from the .dof map); a contact node must be free",
                NodeName(mesh, p).c_str(), spec.pad_set.c_str());
     pt.nodes.push_back({dp, 1.0});
+    // A disc node joins this point: it must be free and, since ContactSet keeps each DOF in one
+    // point (the linearisation eliminates each normal constraint through its own DOFs, method.md
+    // §4), used by no other pad node. Returns the pad node already using it, or -1.
+    auto take_disc = [&](long d, std::array<PetscInt, 3> &dd) -> long {
+      PetscCheck(dofs(d, dd), comm, kErrInput,
+                 "contact: disc %s of %s has constrained DOFs (absent from the .dof map); a contact node must be free",
+                 NodeName(mesh, d).c_str(), spec.disc_set.c_str());
+      auto used = disc_user.emplace(d, p);
+      return used.second ? -1 : used.first->second;
+    };
     if (spec.mode != FacePairing::Mode::Surface && dbest <= spec.tol) {
       std::array<PetscInt, 3> dd{};
-      PetscCheck(dofs(best, dd), comm, kErrInput,
-                 "contact: disc %s of %s has constrained DOFs (absent from the .dof map); a contact node must be free",
-                 NodeName(mesh, best).c_str(), spec.disc_set.c_str());
-      auto used = disc_user.emplace(best, p);
-      PetscCheck(used.second, comm, kErrInput,
+      const long              other = take_disc(best, dd);
+      PetscCheck(other < 0, comm, kErrInput,
                  "contact: pad nodes %ld and %ld both pair with disc %s; lower -contact_pair_tol (now %g m)",
-                 mesh.node_ids[used.first->second], mesh.node_ids[p], NodeName(mesh, best).c_str(), (double)spec.tol);
+                 other < 0 ? 0 : mesh.node_ids[other], mesh.node_ids[p], NodeName(mesh, best).c_str(), (double)spec.tol);
       pt.nodes.push_back({dd, -1.0});
       xd = X(mesh, best);
       n  = disc_n.at(best);
@@ -264,17 +271,12 @@ PetscErrorCode PairContactFaces(MPI_Comm comm, const io::FeMesh &mesh, const Fac
         const long              c = fbest->corners[k];
         if (wbest[k] == 0) continue;
         std::array<PetscInt, 3> dd{};
-        PetscCheck(dofs(c, dd), comm, kErrInput,
-                   "contact: disc %s of %s has constrained DOFs (absent from the .dof map); a contact node must be free",
-                   NodeName(mesh, c).c_str(), spec.disc_set.c_str());
-        auto used = disc_user.emplace(c, p);
-        // ContactSet keeps each DOF in one point (the linearisation eliminates each normal
-        // constraint through its own DOFs, method.md §4).
-        PetscCheck(used.second, comm, kErrInput,
+        const long              other = take_disc(c, dd);
+        PetscCheck(other < 0, comm, kErrInput,
                    "contact: pad nodes %ld and %ld project onto disc facets sharing %s; squeal's contact points need "
                    "distinct DOFs, so node-to-surface pairs must not share disc nodes: mesh the two faces conformingly "
                    "(node-to-node pairs, -contact_pairing node)",
-                   mesh.node_ids[used.first->second], mesh.node_ids[p], NodeName(mesh, c).c_str());
+                   other < 0 ? 0 : mesh.node_ids[other], mesh.node_ids[p], NodeName(mesh, c).c_str());
         pt.nodes.push_back({dd, -wbest[k]});
         xd += wbest[k] * X(mesh, c);
       }
