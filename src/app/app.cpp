@@ -13,6 +13,7 @@
 #include "squeal/stability/sweep.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,12 @@ const char kHelp[] = "squeal: friction-induced self-excited vibration (brake squ
 
 namespace {
 
+std::string Num(PetscReal x)
+{
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", (double)x);
+  return b;
+}
 
 struct Request {
   bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
@@ -198,12 +205,31 @@ PetscErrorCode RunAnalyses(MPI_Comm comm, Model &model, Components &k, const Req
     PetscCall(WriteStability(res, out));
     PetscCall(Checkpoint(comm, out, "the stability analysis"));
     // A stable verdict holds only for the part of the spectrum that was computed completely.
-    if (res.unstable.empty() && res.all_eigenvalues)
+    const StabilityResult::Verdict verdict = res.GetVerdict();
+    std::string                    below;
+    if (const PetscInt nb = res.UnstableBelowBand())
+      below = "; " + std::to_string(nb) + " unstable mode(s) below -stab_fmin = " + Num(res.fmin) + " Hz are outside the band";
+    const std::string band = Num(res.fmin) + "-" + (res.fmax > 0 ? Num(res.fmax) : std::string("inf")) + " Hz";
+    if (verdict == StabilityResult::Verdict::Stable && !below.empty())
+      PetscCall(PetscPrintf(comm, "no unstable mode in the band %s (%s)%s (listed as unst<fmin, not reported)\n", band.c_str(),
+                            res.all_eigenvalues ? "all eigenvalues computed" : ("every eigenvalue up to " + Num(res.CompleteUpTo()) + " Hz computed").c_str(),
+                            below.c_str()));
+    else if (verdict == StabilityResult::Verdict::Stable && res.all_eigenvalues)
       PetscCall(PetscPrintf(comm, "sliding equilibrium is stable (all eigenvalues computed): no self-excited vibration expected\n"));
-    else if (res.unstable.empty())
-      PetscCall(PetscPrintf(comm, "sliding equilibrium is stable up to %.6g Hz (every eigenvalue with |lambda| < %.6g 1/s computed)%s\n",
-                            (double)res.CompleteUpTo(), (double)res.complete_radius,
-                            res.BandCovered() ? "; higher modes were not computed" : "; the band asked for was NOT covered (see above)"));
+    else if (verdict == StabilityResult::Verdict::Stable)
+      PetscCall(PetscPrintf(comm, "sliding equilibrium is stable in the band %s (every eigenvalue up to %.6g Hz computed): no self-excited vibration expected in it\n",
+                            band.c_str(), (double)res.CompleteUpTo()));
+    else if (verdict == StabilityResult::Verdict::Undecided) {
+      const std::string why = "stability undecided: " + std::to_string(res.converged) + " eigenvalue(s) computed, complete up to " +
+                              Num(res.CompleteUpTo()) + " Hz, none unstable there" + below + "; " +
+                              (res.fmax > 0 ? "raise -stab_nev_max to cover -stab_fmax = " + Num(res.fmax) + " Hz, or lower -stab_fmax"
+                                            : "give the band with -stab_fmax");
+      if (!(req.energy || req.shooting || req.continuation)) PetscCall(PetscPrintf(comm, "%s\n", why.c_str()));
+      // Energy, shooting and continuation need an unstable mode: on an undecided verdict they
+      // would report "no vibration" for modes nobody computed.
+      PetscCheck(!(req.energy || req.shooting || req.continuation), comm, PETSC_ERR_NOT_CONVERGED,
+                 "%s (the energy estimate and shooting need the band decided)", why.c_str());
+    }
     for (PetscInt i : res.unstable) {
       const Mode &m = res.modes[i];
       PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,

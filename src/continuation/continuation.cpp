@@ -1,4 +1,5 @@
 #include "squeal/continuation/continuation.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
@@ -94,8 +95,8 @@ PetscErrorCode Continuation::SetFromOptions()
   PetscCall(checks.Run(comm_));
   param = name;
   PetscCheck(param == "mu" || param == "v", comm_, kErrInput, "option -cont_param = '%s': expected mu or v", name);
-  if (lmin == PETSC_NINFINITY) lmin = param == "mu" ? 0.0 : 0.1;
-  if (lmax == PETSC_INFINITY) lmax = param == "mu" ? 0.6 : 10.0;
+  if (lmin == -kInf) lmin = param == "mu" ? 0.0 : 0.1;
+  if (lmax == kInf) lmax = param == "mu" ? 0.6 : 10.0;
   PetscCheck(lmin < lmax, comm_, kErrInput, "options -cont_min = %g, -cont_max = %g: expected min < max", (double)lmin, (double)lmax);
   PetscCheck(param == "mu" ? lmin >= 0 : lmin > 0, comm_, kErrInput, "option -cont_min = %g: mu must be >= 0, v > 0", (double)lmin);
   PetscCheck(ds_min <= ds && ds <= ds_max, comm_, kErrInput, "options -cont_ds_min %g <= -cont_ds %g <= -cont_ds_max %g violated",
@@ -895,11 +896,11 @@ PetscErrorCode Continuation::Detect(ContinuationResult &res)
       add("fold", i, b - 0.25 * (a - c) * x, P[i].param > P[i - 1].param ? "the parameter turns back (maximum)" : "the parameter turns back (minimum)");
     }
   // Coexistence of a stable cycle with a stable equilibrium: hysteresis.
-  PetscReal clo = PETSC_INFINITY, chi = PETSC_NINFINITY;
+  PetscReal clo = kInf, chi = -kInf;
   size_t    cfirst = 0;
   for (size_t i = 0; i < P.size(); ++i)
     if (P[i].stable_cycle && P[i].equilibrium_unstable == 0) {
-      if (clo == PETSC_INFINITY) cfirst = i;
+      if (clo == kInf) cfirst = i;
       clo = std::min(clo, P[i].param), chi = std::max(chi, P[i].param);
     }
   if (clo <= chi)

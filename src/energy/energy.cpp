@@ -1,4 +1,5 @@
 #include "squeal/energy/energy.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 
@@ -148,7 +149,7 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   phit_.clear();
   phib_.clear();
   speed_.clear();
-  est.q_sep = PETSC_INFINITY;
+  est.q_sep = kInf;
   for (PetscInt c : eq.active) {
     PetscReal D = 0; // h_n^T h_n (H_n^T H_n is diagonal: ContactSet::Validate)
     cs.ForEachEntry(c, kN, [&](PetscInt, PetscReal v) { D += v * v; });
@@ -162,7 +163,7 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   // Without normal reaction fluctuations lift-off never bounds the scan: use the amplitude at
   // which the tangential velocity reaches the surface speed (the stick side saturation).
   if (!std::isfinite(est.q_sep)) {
-    PetscReal best = PETSC_INFINITY;
+    PetscReal best = kInf;
     for (size_t p = 0; p < phit_.size(); ++p)
       if (std::abs(phit_[p]) > 0) best = std::min(best, cs.Speed(eq.active[p]) / (m.omega * std::abs(phit_[p])));
     est.q_sep = std::isfinite(best) ? best : 1.0;
@@ -198,7 +199,7 @@ PetscErrorCode EnergyAnalysis::View(const EnergyEstimate &est, PetscViewer viewe
   PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
   if (!ascii) PetscFunctionReturn(0);
   if (est.mode < 0) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "energy estimate: sliding equilibrium is stable: no self-excited vibration expected\n"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "energy estimate: no unstable mode in the band: nothing to estimate\n"));
     PetscFunctionReturn(0);
   }
   PetscCall(PetscViewerASCIIPrintf(viewer, "energy estimate for mode %" PetscInt_FMT " (f = %.4f Hz, sigma = %.4f 1/s):\n", est.mode,

@@ -1,4 +1,5 @@
 #include "squeal/integration/transient.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
@@ -432,7 +433,7 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
   const PetscReal       dt          = (res.t[nr - 1] - res.t[from]) / (PetscReal)(nr - 1 - from);
   std::vector<Crossing> cr;
   auto                  section = [&](PetscReal depth) {
-    PetscReal cyc_min = PETSC_INFINITY;
+    PetscReal cyc_min = kInf;
     bool      armed   = false;
     cr.clear();
     for (size_t k = from; k + 1 < nr; ++k) {
@@ -444,7 +445,7 @@ void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, Pe
         cr.push_back({res.t[k] + sk * (res.t[k + 1] - res.t[k]), k, sk});
         armed   = false;
         depth   = c - cyc_min;
-        cyc_min = PETSC_INFINITY;
+        cyc_min = kInf;
       }
     }
   };

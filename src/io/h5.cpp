@@ -34,7 +34,11 @@ H5Writer::~H5Writer()
   if (open_ && !keep_status_.empty()) {
     PetscCallVoid(SetStatus(keep_status_.c_str()));
     PetscCallVoid(Close());
-    PetscCallVoid(PetscFPrintf(comm_, PETSC_STDERR, "squeal: results computed before the error written to %s\n", path_.c_str()));
+    if (aside_)
+      PetscCallVoid(PetscFPrintf(comm_, PETSC_STDERR,
+                                 "squeal: results computed before the error written to %s (the complete results in %s are kept)\n",
+                                 aside_path_.c_str(), path_.c_str()));
+    else PetscCallVoid(PetscFPrintf(comm_, PETSC_STDERR, "squeal: results computed before the error written to %s\n", path_.c_str()));
   }
   PetscCallVoid(Close());
 }
@@ -86,6 +90,38 @@ bool H5Writer::IsResultsFile(const char *path)
   return ours;
 }
 
+bool H5Writer::IsCompleteResultsFile(const char *path)
+{
+  if (!IsResultsFile(path)) return false;
+  const hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return false;
+  bool complete = false;
+  if (H5Aexists(f, "status") > 0) {
+    const hid_t a = H5Aopen(f, "status", H5P_DEFAULT);
+    const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
+    char        buf[16] = {0};
+    if (t >= 0 && H5Tget_class(t) == H5T_STRING && H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
+      complete = std::strcmp(buf, "complete") == 0;
+    if (t >= 0) H5Tclose(t);
+    if (a >= 0) H5Aclose(a);
+  }
+  H5Fclose(f);
+  return complete;
+}
+
+std::string H5Writer::FailedSibling(const std::string &path)
+{
+  std::string stem = path;
+  for (const char *ext : {".h5", ".hdf5"}) {
+    const size_t n = std::strlen(ext);
+    if (stem.size() > n && stem.compare(stem.size() - n, n, ext) == 0) {
+      stem.resize(stem.size() - n);
+      break;
+    }
+  }
+  return stem + ".failed.h5";
+}
+
 PetscErrorCode H5Writer::Open(MPI_Comm comm, const char *path)
 {
   PetscFunctionBeginUser;
@@ -95,6 +131,9 @@ PetscErrorCode H5Writer::Open(MPI_Comm comm, const char *path)
   path_ = path ? path : "";
   tmp_  = DirName(path_) + "/." + BaseName(path_) + ".part-" + std::to_string((long long)getpid());
   err_.clear();
+  status_.clear();
+  aside_path_.clear();
+  aside_ = false;
   PetscCheck(!path_.empty() && path_.back() != '/', comm, PETSC_ERR_USER_INPUT, "-output '%s': expected a file name", path_.c_str());
   if (rank_ == 0) {
     QuietHDF5();
@@ -138,12 +177,21 @@ PetscErrorCode H5Writer::Close()
   PetscFunctionBeginUser;
   if (!open_) PetscFunctionReturn(0);
   open_ = false;
+  PetscMPIInt aside = 0;
   if (rank_ == 0) {
     if (H5Fclose(file_) < 0) Fail("close the file");
     file_ = -1;
-    if (err_.empty() && std::rename(tmp_.c_str(), path_.c_str()) != 0)
-      err_ = "cannot rename '" + tmp_ + "' to '" + path_ + "': " + std::strerror(errno);
+    std::string target = path_;
+    if (status_ != "complete" && IsCompleteResultsFile(path_.c_str())) {
+      aside  = 1;
+      target = FailedSibling(path_);
+    }
+    if (err_.empty() && std::rename(tmp_.c_str(), target.c_str()) != 0)
+      err_ = "cannot rename '" + tmp_ + "' to '" + target + "': " + std::strerror(errno);
   }
+  PetscCallMPI(MPI_Bcast(&aside, 1, MPI_INT, 0, comm_));
+  aside_      = aside != 0;
+  aside_path_ = aside_ ? FailedSibling(path_) : std::string();
   PetscCall(Sync());
   PetscFunctionReturn(0);
 }
@@ -161,6 +209,7 @@ PetscErrorCode H5Writer::SetStatus(const char *status)
 {
   PetscFunctionBeginUser;
   PetscCall(WriteAttribute("/", "status", status));
+  status_ = status;
   PetscFunctionReturn(0);
 }
 

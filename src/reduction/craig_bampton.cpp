@@ -1,4 +1,5 @@
 #include "squeal/reduction/craig_bampton.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
 #include "squeal/core/options.h"
@@ -467,7 +468,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   EPSH            eps;
   Mat             Fct; // owned by the ST's PC
   PetscInt        nev   = 0;
-  const PetscReal w2max = fmax_ > 0 ? std::pow(2 * PETSC_PI * fmax_, 2) : PETSC_INFINITY;
+  const PetscReal w2max = fmax_ > 0 ? std::pow(2 * PETSC_PI * fmax_, 2) : kInf;
   {
     ST        st;
     KSP       ksp;

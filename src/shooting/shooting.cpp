@@ -1,4 +1,5 @@
 #include "squeal/shooting/shooting.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
 #include "squeal/core/options.h"
@@ -209,7 +210,7 @@ struct ShootingCallbacks {
       s->best_res_ = res;
       PetscCall(VecCopy(x, s->best_x_));
     }
-    PetscReal dT = PETSC_INFINITY;
+    PetscReal dT = kInf;
     if (it > 0) {
       PetscCall(SNESGetSolutionUpdate(snes, &dx));
       PetscCall(s->Unpack(dx, s->aU_, s->adU_, &dT));
@@ -1385,7 +1386,7 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
   if (rank == 0) {
     res.peak_to_peak.assign(N, 0.0);
     for (PetscInt k = 0; k < N; ++k) {
-      PetscReal lo = PETSC_INFINITY, hi = PETSC_NINFINITY;
+      PetscReal lo = kInf, hi = -kInf;
       for (PetscInt i = 0; i <= steps; ++i) lo = std::min(lo, res.orbit_U[i * N + k]), hi = std::max(hi, res.orbit_U[i * N + k]);
       res.peak_to_peak[k] = hi - lo;
     }
@@ -1470,7 +1471,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   anchored_    = false;
   hist_res_.clear();
   hist_T_.clear();
-  best_res_ = PETSC_INFINITY;
+  best_res_ = kInf;
   fail_reason_.clear();
   criterion_iterate_ = -1;
   PetscCall(CreateState(x.out()));
@@ -1489,7 +1490,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(VecDuplicate(dU0, dU.out()));
     PetscCall(VecCopy(U0, U));
     PetscCall(VecCopy(dU0, dU));
-    PetscReal T = T0, e = PETSC_INFINITY;
+    PetscReal T = T0, e = kInf;
     PetscInt  k = 0;
     while (k < pre_periods) {
       PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
@@ -1644,7 +1645,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     // Sorted by modulus; the one closest to 1 is the trivial one; stable if all others are inside.
     auto classify = [](std::vector<std::complex<PetscReal>> &m, PetscInt &trivial, PetscReal &others) {
       std::sort(m.begin(), m.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
-      PetscReal best = PETSC_INFINITY;
+      PetscReal best = kInf;
       others         = 0;
       for (size_t i = 0; i < m.size(); ++i)
         if (std::abs(m[i] - 1.0) < best) best = std::abs(m[i] - 1.0), trivial = (PetscInt)i;

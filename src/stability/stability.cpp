@@ -1,4 +1,5 @@
 #include "squeal/stability/stability.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
 #include "squeal/core/options.h"
@@ -6,12 +7,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace squeal {
 
 PetscReal StabilityResult::MaxOscillatorySigma(PetscInt *which) const
 {
-  PetscReal best = PETSC_NINFINITY;
+  PetscReal best = -kInf;
   if (which) *which = -1;
   for (size_t i = 0; i < modes.size(); ++i)
     if (modes[i].Oscillatory() && modes[i].sigma > best) {
@@ -148,7 +150,7 @@ PetscErrorCode StabilitySolver::Solve(const Model &model, const SlidingEquilibri
     }
     std::sort(mods.begin(), mods.end());
     res.all_eigenvalues = res.converged >= n_all;
-    res.complete_radius = res.all_eigenvalues ? PETSC_INFINITY : (res.converged >= nev ? mods[nev - 1] : 0.0);
+    res.complete_radius = res.all_eigenvalues ? kInf : (res.converged >= nev ? mods[nev - 1] : 0.0);
     if (fmax_ == 0 || res.BandCovered() || nev >= nev_cap) break;
     // Grow in proportion to the missing part of the band (at least double): one or two solves.
     const PetscReal reached = mods.empty() ? 0.0 : mods.back();
@@ -205,7 +207,8 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
   PetscCall(PetscViewerASCIIPrintf(viewer, "  mode   sigma (1/s)  omega (rad/s)     f (Hz)       T (s)      zeta  status     backward err\n"));
   for (size_t i = 0; i < res.modes.size(); ++i) {
     const Mode &m      = res.modes[i];
-    const char *status = m.Unstable() ? (m.Oscillatory() ? "UNSTABLE" : "DIVERGENT") : "stable";
+    const bool  below  = m.Unstable() && m.Frequency() < res.fmin;
+    const char *status = m.Unstable() ? (below ? "unst<fmin" : m.Oscillatory() ? "UNSTABLE" : "DIVERGENT") : "stable";
     if (m.Oscillatory())
       PetscCall(PetscViewerASCIIPrintf(viewer, "  %4zu  %12.5f  %13.5f  %9.4f  %10.7f  %8.5f  %-9s  %9.2e\n", i, (double)m.sigma,
                                        (double)m.omega, (double)m.Frequency(), (double)m.Period(), (double)m.DampingRatio(),
@@ -213,6 +216,12 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
     else
       PetscCall(PetscViewerASCIIPrintf(viewer, "  %4zu  %12.5f  %13.5f  %9s  %10s  %8s  %-9s  %9.2e\n", i, (double)m.sigma, 0.0,
                                        "-", "-", "-", status, (double)m.error));
+  }
+  if (const PetscInt nb = res.UnstableBelowBand()) {
+    char fmin[32]; // PETSc's %g would print "200."
+    std::snprintf(fmin, sizeof fmin, "%g", (double)res.fmin);
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  unst<fmin: %" PetscInt_FMT " unstable mode(s) below -%sfmin = %s Hz, outside the band: not reported\n",
+                                     nb, prefix_.c_str(), fmin));
   }
   PetscFunctionReturn(0);
 }

@@ -1,4 +1,5 @@
 #include "squeal/stability/sweep.h"
+#include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 #include "squeal/model/builders.h"
@@ -53,7 +54,7 @@ struct PointSolver {
 
 PetscReal SweepResult::MaxSigma(size_t iv, size_t imu) const
 {
-  PetscReal best = PETSC_NINFINITY;
+  PetscReal best = -kInf;
   for (PetscInt s = 0; s < k; ++s) {
     const PetscReal *e = &eigenvalues[(((iv * mu.size()) + imu) * k + s) * 2];
     if (!std::isnan(e[0]) && e[1] > 0) best = PetscMax(best, e[0]);
@@ -244,7 +245,7 @@ PetscErrorCode SweepSolver::View(const SweepResult &res, PetscViewer viewer) con
                                    res.mu.size(), (double)res.mu.front(), (double)res.mu.back(), res.V.size(),
                                    (double)res.V.front(), (double)res.V.back(), nfail));
   PetscInt nuncov = 0;
-  PetscReal worst = PETSC_INFINITY;
+  PetscReal worst = kInf;
   for (size_t p = 0; p < res.covered.size(); ++p)
     if (!res.failed[p] && !res.covered[p]) nuncov++, worst = PetscMin(worst, res.complete_up_to[p]);
   if (res.fmax > 0 && nuncov == 0)

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <utility>
 #include <vector>
 
 using namespace squeal;
@@ -443,4 +444,55 @@ TEST(Verdicts, CoarseRecordsOfACleanCycleAreSettled)
   EXPECT_TRUE(s.settled) << TrendName(s.trend);
   EXPECT_LT(s.return_error, s.return_floor);
   EXPECT_NEAR(s.period / kPeriod, 1.0, 1e-4);
+}
+
+// Issue 20 items 2 and 7: the three-way stability verdict, and unbounded quantities as IEEE inf
+// (PETSC_INFINITY is a finite 4.49e307 that passes std::isfinite and was written to files).
+TEST(Verdicts, StabilityVerdictIsUndecidedUnlessTheBandIsCovered)
+{
+  StabilityResult r;
+  r.fmax = 1000;
+  Mode m;
+  m.sigma = -1, m.omega = 2 * PETSC_PI * 100;
+  r.modes.push_back(std::move(m));
+  r.complete_radius = 2 * PETSC_PI * 500; // complete up to 500 Hz of a 1000 Hz band
+  EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Undecided);
+  r.complete_radius = 2 * PETSC_PI * 1500;
+  EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Stable);
+  r.fmax            = 0; // no band asked: only the whole spectrum decides
+  r.complete_radius = 2 * PETSC_PI * 1500;
+  EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Undecided);
+  r.all_eigenvalues = true;
+  EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Stable);
+
+  // An unstable mode below -stab_fmin is listed apart and does not make the band unstable.
+  Mode u;
+  u.sigma = 5, u.omega = 2 * PETSC_PI * 50;
+  r.modes.push_back(std::move(u));
+  r.fmin = 80;
+  EXPECT_EQ(r.UnstableBelowBand(), 1);
+  EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Stable);
+  r.unstable = {1};
+  EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Unstable);
+}
+
+TEST(Verdicts, ZeroFrequencyAndCompleteSpectrumAreInfinite)
+{
+  Mode m;
+  m.sigma = 3, m.omega = 0;
+  EXPECT_TRUE(std::isinf(m.Period()));
+  EXPECT_FALSE(std::isfinite(m.Period()));
+  // Case 1 (default parameters): all 4 eigenvalues of the reduced problem are known.
+  Model              model(PETSC_COMM_WORLD);
+  SlidingEquilibrium eq;
+  StabilityResult    sr;
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  StabilitySolver    stab(PETSC_COMM_WORLD);
+  ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, ThreeDofParams{}, model), 0);
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  ASSERT_EQ(stab.Solve(model, eq, sr), 0);
+  EXPECT_TRUE(sr.all_eigenvalues);
+  EXPECT_TRUE(std::isinf(sr.complete_radius));
+  EXPECT_TRUE(std::isinf(sr.CompleteUpTo()));
+  EXPECT_EQ(sr.GetVerdict(), StabilityResult::Verdict::Unstable);
 }

@@ -26,6 +26,7 @@
 // the run stops there, keeps the points so far (res.interrupted), and the caller writes them.
 #pragma once
 
+#include "squeal/core/inf.h"
 #include "squeal/io/h5.h"
 #include "squeal/shooting/shooting.h"
 #include "squeal/stability/equilibrium.h"
@@ -88,7 +89,7 @@ public:
   // Settings, public for tests. The corrector stops on the shooting rule (6.3) with
   // -shoot_eps1/-shoot_eps2, plus |dlambda| / range < eps2.
   std::string param = "mu";
-  PetscReal   lmin = PETSC_NINFINITY, lmax = PETSC_INFINITY; // defaults: mu [0, 0.6], v [0.1, 10]
+  PetscReal   lmin = -kInf, lmax = kInf; // defaults: mu [0, 0.6], v [0.1, 10]
   PetscReal   ds = 0.02, ds_min = 1e-4, ds_max = 0.1, locate_tol = 1e-4, jump_tol = 0.2, min_amplitude = 0.02;
   PetscInt    max_steps = 200, max_it = 12;
   // -cont_slices k: [min, max] cut into k equal slices, each continued downwards from a shooting

@@ -3,6 +3,8 @@
 // place they are read.
 #pragma once
 
+#include "squeal/core/inf.h"
+
 #include <petscsys.h>
 
 #include <string>
@@ -11,12 +13,12 @@
 namespace squeal {
 
 struct Range {
-  PetscReal lo        = PETSC_NINFINITY;
-  PetscReal hi        = PETSC_INFINITY;
+  PetscReal lo        = -kInf;
+  PetscReal hi        = kInf;
   bool      lo_strict = false; // true: value must be > lo
   static Range Any() { return {}; }
-  static Range Positive() { return {0.0, PETSC_INFINITY, true}; }
-  static Range NonNegative() { return {0.0, PETSC_INFINITY, false}; }
+  static Range Positive() { return {0.0, kInf, true}; }
+  static Range NonNegative() { return {0.0, kInf, false}; }
   static Range Closed(PetscReal a, PetscReal b) { return {a, b, false}; }
   static Range OpenBelow(PetscReal a, PetscReal b) { return {a, b, true}; }
 };

@@ -9,6 +9,8 @@
 //    (the last to finish), never a mixture; a reader never sees a half-written file.
 //  - Flush() after each analysis puts what is complete on disk (in the temporary file).
 //  - The root attribute "status" says "complete", "interrupted (SIGINT)" or "failed: ...".
+//  - A run that did not complete never replaces a complete results file: its file goes beside
+//    the target as NAME.failed.h5 (NAME.h5 the target), and Path() then names that file.
 //
 // Only rank 0 touches the file, through HDF5's default (serial, POSIX) driver: every array squeal
 // writes is small or already gathered to rank 0, and the MPI-IO driver overflows a buffer on
@@ -35,12 +37,15 @@ public:
   // Checks the target (not a directory, not a foreign file, directory writable) and creates the
   // temporary file. Collective.
   PetscErrorCode Open(MPI_Comm comm, const char *path);
-  // Closes the temporary file and renames it onto the target. Collective; no-op if not open.
+  // Closes the temporary file and renames it onto the target (or, if the status is not
+  // "complete" and the target is a complete results file, onto NAME.failed.h5 beside it).
+  // Collective; no-op if not open.
   PetscErrorCode Close();
   // Writes buffered data to disk. Collective.
   PetscErrorCode Flush();
   bool               IsOpen() const { return open_; }
-  const std::string &Path() const { return path_; }
+  // The file the results went to: the target, or its .failed.h5 sibling (see Close).
+  const std::string &Path() const { return aside_ ? aside_path_ : path_; }
   const std::string &TemporaryPath() const { return tmp_; }
 
   // Root attribute "status" ("complete", "interrupted (SIGINT) ...", "failed: ...").
@@ -61,6 +66,10 @@ public:
 
   // True if `path` is an HDF5 file written by squeal (rank-local, no MPI).
   static bool IsResultsFile(const char *path);
+  // True if `path` is a squeal results file whose status is "complete" (rank-local, no MPI).
+  static bool IsCompleteResultsFile(const char *path);
+  // NAME.failed.h5 for NAME.h5 (or NAME.hdf5, or NAME with another ending: NAME.failed.h5).
+  static std::string FailedSibling(const std::string &path);
 
 private:
   // Rank-0 parts: record the first failure in err_ instead of raising.
@@ -77,7 +86,8 @@ private:
   PetscMPIInt rank_ = 0;
   bool        open_ = false;
   hid_t       file_ = -1;
-  std::string path_, tmp_, err_, keep_status_;
+  std::string path_, tmp_, err_, keep_status_, status_, aside_path_;
+  bool        aside_ = false; // the file went to aside_path_ (see Close)
 };
 
 } // namespace squeal::io

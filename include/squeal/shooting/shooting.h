@@ -27,6 +27,7 @@
 // an accuracy check.
 #pragma once
 
+#include "squeal/core/inf.h"
 #include "squeal/core/gather.h"
 #include "squeal/integration/theta.h"
 #include "squeal/io/h5.h"
@@ -231,7 +232,7 @@ private:
   MatH                     J_;
   bool                     anchored_ = false;
   std::vector<PetscReal>   hist_res_, hist_T_;
-  PetscReal                best_res_ = PETSC_INFINITY;
+  PetscReal                best_res_ = kInf;
   PetscInt                 criterion_iterate_ = -1;
   VecH                     best_x_;
   std::string              fail_reason_;

@@ -19,6 +19,7 @@
 // mode phi = Q xi normalised so that its largest tangential contact component is exactly 1.
 #pragma once
 
+#include "squeal/core/inf.h"
 #include "squeal/core/handle.h"
 #include "squeal/model/model.h"
 #include "squeal/stability/equilibrium.h"
@@ -36,7 +37,7 @@ struct Mode {
   VecH      phi_re, phi_im;       // N-vectors (only when modes were asked for)
 
   PetscReal Frequency() const { return omega / (2 * PETSC_PI); }
-  PetscReal Period() const { return omega > 0 ? 2 * PETSC_PI / omega : PETSC_INFINITY; }
+  PetscReal Period() const { return omega > 0 ? 2 * PETSC_PI / omega : kInf; }
   PetscReal DampingRatio() const { return -sigma / PetscSqrtReal(sigma * sigma + omega * omega); }
   bool      Unstable() const { return sigma > 0; }
   bool      Oscillatory() const { return omega > 0; }
@@ -53,6 +54,23 @@ struct StabilityResult {
   // X = R_c / 2 pi (Hz): every eigenvalue with |lambda| < 2 pi X is in the table.
   PetscReal CompleteUpTo() const { return complete_radius / (2 * PETSC_PI); }
   bool      BandCovered() const { return all_eigenvalues || complete_radius > 2 * PETSC_PI * fmax; }
+
+  // Unstable: an unstable mode in the band (f >= fmin). Stable: none, and the band is covered (or
+  // the whole spectrum is known). Undecided: none among the eigenvalues computed, which do not
+  // cover the band; energy, shooting and continuation refuse to go on from it.
+  enum class Verdict { Unstable, Stable, Undecided };
+  Verdict GetVerdict() const
+  {
+    if (!unstable.empty()) return Verdict::Unstable;
+    return all_eigenvalues || (fmax > 0 && BandCovered()) ? Verdict::Stable : Verdict::Undecided;
+  }
+  // Unstable modes below the band (f < fmin): listed, not reported.
+  PetscInt UnstableBelowBand() const
+  {
+    PetscInt n = 0;
+    for (const Mode &m : modes) n += m.Unstable() && m.Frequency() < fmin;
+    return n;
+  }
 
   // Largest growth rate over oscillatory modes (flutter); -inf if none.
   PetscReal MaxOscillatorySigma(PetscInt *which = nullptr) const;
