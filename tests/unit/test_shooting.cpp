@@ -1,4 +1,4 @@
-// Shooting (method.md §6): convergence from the energy estimate, agreement with the transient's
+// Shooting (docs/method.md §6): convergence from the energy estimate, agreement with the transient's
 // settled cycle, the matrix-free Jacobian against a dense finite-difference one, Floquet check.
 #include "dense.h"
 #include "squeal/energy/energy.h"
@@ -79,7 +79,7 @@ TEST(Shooting, BothCasesConvergeAndMatchTheTransient)
     ASSERT_GE(sr.trivial, 0);
     EXPECT_LT(std::abs(sr.floquet[sr.trivial] - 1.0), 1e-2);
     EXPECT_TRUE(sr.stable_cycle);
-    // Regimes of method.md §8.
+    // Regimes of docs/method.md §8.
     if (c.V == 3.0) {
       EXPECT_GT(sr.frac_separated, 0.1);
       EXPECT_EQ(sr.frac_stuck, 0.0);
@@ -304,7 +304,7 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
 
 TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
 {
-  // method.md §6: the product of the exact step tangents (statuses held fixed) against the 2N
+  // docs/method.md §6: the product of the exact step tangents (statuses held fixed) against the 2N
   // forward-difference flows, at the converged cycles of both cases (planar) and of
   // the 4-contact chain (dense back end, replicated on every rank under MPI).
   ThreeDofParams c1, c2;
@@ -530,7 +530,7 @@ TEST(Shooting, ExactTangentFlowMatchesFiniteDifferencesOfTheFlow)
 // Above -shoot_jacobian_dense_max, GMRES runs on exact tangent products preconditioned by the LU of
 // the sliding linearisation's bordered Jacobian (-shoot_linear_pc), with each step's contact factor
 // kept along the flow (-shoot_tangent_cache_mb). Newton must take the same iterates as with the
-// factorised exact Jacobian (the Krylov tolerance apart), on both cycles of method.md §8: one with
+// factorised exact Jacobian (the Krylov tolerance apart), on both cycles of docs/method.md §8: one with
 // separation, one with stick, where the linearisation is furthest from the cycle's tangent.
 TEST(Shooting, LinearisedPreconditionerTakesTheDenseNewtonIterates)
 {

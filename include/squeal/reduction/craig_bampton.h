@@ -1,5 +1,5 @@
 // Craig-Bampton reduction of a model to its contact DOFs plus fixed-interface modes
-// (method.md §4.4 route (b), §9), options prefix "reduce_".
+// (docs/method.md §4.4 route (b), §9), options prefix "reduce_".
 //
 // Partition the DOFs into the interface B (every translational DOF of every contact node, in the
 // contact order: point c's node DOFs x, y, z at 3c .. 3c+2) and the interior I (the rest).

@@ -1,4 +1,4 @@
-// Shooting for the periodic orbit with the period as unknown (method.md §6).
+// Shooting for the periodic orbit with the period as unknown (docs/method.md §6).
 //
 // Unknowns x = (Z0, T), Z = (U, dU) in R^{2N}. The discrete flow Z(Z0, T) runs N_s steps of the
 // theta-method (integration/theta.h) with h = T / N_s, every evaluation starting the contact
@@ -16,7 +16,7 @@
 // when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate x_k, dT being the Newton
 // correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
 // Floquet multipliers: eigenvalues of the monodromy matrix, from the exact tangents of the steps
-// (method.md §6, statuses held fixed; dense theta back end) or from 2N forward differences
+// (docs/method.md §6, statuses held fixed; dense theta back end) or from 2N forward differences
 // (delta = fd_step ||U0|| for displacement columns, fd_step ||dU0|| for velocity columns), or
 // for large models the leading ones by SLEPc on a matrix-free product. The discrete period map is
 // only piecewise smooth along the orbit (the step that holds an impact moves with the phase), so
@@ -121,7 +121,7 @@ public:
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
   PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
   PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
-  // The same matrix as the product of the exact step tangents along one flow (method.md §6),
+  // The same matrix as the product of the exact step tangents along one flow (docs/method.md §6),
   // statuses held fixed: no finite-difference error, one flow instead of 2N + 1. Dense back end.
   PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
   // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell
