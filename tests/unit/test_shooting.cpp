@@ -236,10 +236,11 @@ TEST(Shooting, MatrixFreeFloquetMatchesDenseMonodromy)
 
 TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
 {
-  // Why the trivial multiplier of case 1 does not close on 1 as N_s grows (README, "Trivial Floquet
-  // multiplier"). Z1 = one step from Z0 is again an exact fixed point of the period map Phi, so the
-  // secant over the whole shift is exact: Phi(Z0 + d) - Phi(Z0) = d, d = Z1 - Z0. For a smooth Phi
-  // the secants over [0, s d] would all equal d up to O(|d|). The discrete map is only piecewise
+  // Why the trivial multiplier of case 1 does not close on 1 as N_s grows (docs/numerics.md,
+  // "Floquet multipliers: the average over one step"). Z1 = one step from Z0 is again an exact
+  // fixed point of the period map Phi, so the secant over the whole shift is exact:
+  // Phi(Z0 + d) - Phi(Z0) = d, d = Z1 - Z0. For a smooth Phi the secants over [0, s d] would all
+  // equal d up to O(|d|). The discrete map is only piecewise
   // smooth: the step in which the impact falls moves as the orbit shifts, so the secants differ
   // by an amount that does not shrink with h. That is the miss of the trivial multiplier of the
   // discrete map's own Jacobian (-shoot_floquet_phases 1), and the reason for the phase average.
@@ -620,7 +621,7 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
     EXPECT_LT(std::abs(pre.pre_period - ref.period), std::abs(pr.est.T0 - ref.period)) << "V = " << V;
     EXPECT_LT(std::abs(pre.pre_period / ref.period - 1.0), 1e-3) << "V = " << V;
     // Not 1e-10: the discrete cycle's period depends on where in a step its status changes fall,
-    // so on the phase Newton settles at (2.9e-7 and 8.6e-7 at 1000 steps, README "Continuation").
+    // so on the phase Newton settles at (2.9e-7 and 8.6e-7 at 1000 steps, docs/records.md "Continuation").
     EXPECT_NEAR(pre.period / ref.period, 1.0, 2e-6) << "V = " << V;
     EXPECT_LE(pre.iterations, ref.iterations) << "V = " << V;
   }
@@ -667,7 +668,7 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   TransientResult tr;
   ASSERT_EQ(ta.Run(pr.model, pr.eq, pr.stab, ti2, tr), 0);
   if (Rank0()) { // the orbit's summaries live on rank 0
-    // Not the equilibrium: the cycle lifts off for about half of each period (README: 48.5 %).
+    // Not the equilibrium: the cycle lifts off for about half of each period (README.md, "A worked example": 48.5 %).
     EXPECT_GT(defl.frac_separated, 0.3);
     EXPECT_NEAR(tr.summary.period / defl.period, 1.0, 1e-4);
     for (int j = 0; j < 2; ++j) EXPECT_NEAR(tr.summary.peak_to_peak[j] / defl.peak_to_peak[j], 1.0, 1e-3) << "DOF " << j;

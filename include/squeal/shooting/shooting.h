@@ -23,7 +23,7 @@
 // its own trivial multiplier misses 1 by ~1e-3 whatever h. The monodromy is therefore averaged
 // over -shoot_floquet_phases starting points spread over one step of the orbit (Z0 + s (Z1 - Z0),
 // s at the midpoints of [0, 1)): the average is the derivative of the phase-averaged map, whose
-// trivial multiplier closes on 1 (README). The trivial multiplier (closest to 1) is reported as
+// trivial multiplier closes on 1 (docs/numerics.md). The trivial multiplier (closest to 1) is reported as
 // an accuracy check.
 #pragma once
 
