@@ -668,7 +668,8 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   TransientResult tr;
   ASSERT_EQ(ta.Run(pr.model, pr.eq, pr.stab, ti2, tr), 0);
   if (Rank0()) { // the orbit's summaries live on rank 0
-    // Not the equilibrium: the cycle lifts off for about half of each period (README.md, "A worked example": 48.5 %).
+    // Not the equilibrium: the cycle lifts off for about half of each period (README.md, "A worked
+    // example": 48.5 %).
     EXPECT_GT(defl.frac_separated, 0.3);
     EXPECT_NEAR(tr.summary.period / defl.period, 1.0, 1e-4);
     for (int j = 0; j < 2; ++j) EXPECT_NEAR(tr.summary.peak_to_peak[j] / defl.peak_to_peak[j], 1.0, 1e-3) << "DOF " << j;
