@@ -1,4 +1,4 @@
-// Cost of one theta-method step (method.md §5).
+// Cost of one theta-method step (docs/method.md §5).
 //   ThreeDof/Library/case:k: the 3-DOF reference case k through the library (ThetaIntegrator::Step,
 //     dense back end); case 1: separation/slip at V = 3, case 2: stick/slip at V = 0.75.
 //   ThreeDof/MinimalLoop/case:k: the same equations written out by hand with fixed-size Eigen
@@ -67,7 +67,7 @@ void Prepare(Prepared &p, PetscInt warm, PetscInt dense_max)
   for (PetscInt i = 0; i < warm; ++i) PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
 }
 
-// The two 3-DOF reference cases (method.md §7): 1 = separation/slip, 2 = stick/slip.
+// The two 3-DOF reference cases (docs/method.md §7): 1 = separation/slip, 2 = stick/slip.
 ThreeDofParams CaseParams(int which)
 {
   ThreeDofParams prm;

@@ -81,7 +81,7 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
   }
   if (HasExplicitColumns()) {
     // Nodal points satisfy these by the checks above (distinct DOFs, orthogonal frames); with
-    // explicit entries they are checked: the pivot elimination (Q, L of method.md §4) and the
+    // explicit entries they are checked: the pivot elimination (Q, L of docs/method.md §4) and the
     // energy estimate's psi (§7) rely on them.
     std::map<PetscInt, std::pair<PetscInt, PetscReal>> normal; // DOF -> (point, value of its h_n there)
     std::vector<PetscReal>                             nn(Size(), 0.0);

@@ -65,7 +65,7 @@ void LocalContactSolver::Status(const Eigen::VectorXd &r, std::vector<int> &stat
       status[c] = kOpen;
       continue;
     }
-    // Stick: strictly inside the friction disc (method.md §5, "Cost and status").
+    // Stick: strictly inside the friction disc (docs/method.md §5, "Cost and status").
     const PetscReal rT = cs_->law == FrictionLaw::Rectilinear ? std::abs(r[o + kT]) : std::hypot(r[o + kT], r[o + kB]);
     status[c] = rT < (1 - 1e-9) * cs_->mu * rn ? kStick : kSlip;
   }

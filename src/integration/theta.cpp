@@ -189,7 +189,7 @@ PetscErrorCode ThetaIntegrator::ConfigureSolver()
   PetscCall(UseDirectSolver(ksp_, Factorisation::SPD)); // A = M + h theta C + h^2 theta^2 K
   PetscMPIInt size;
   PetscCallMPI(MPI_Comm_size(comm_, &size));
-  // A single model's step solves do not split well over ranks (README "MPI speed-ups"): MUMPS's
+  // A single model's step solves do not split well over ranks (docs/records.md "MPI speed-ups"): MUMPS's
   // distributed solve made the 30 000-DOF chain's transient 33x slower on 2 ranks, CG + block
   // Jacobi needed 3.8 block solves per solve on the 31119-DOF pad. auto therefore keeps one rank's
   // work per solve: every rank holds the whole A (PCREDUNDANT) factorised by PETSc's Cholesky, as

@@ -226,7 +226,7 @@ PetscErrorCode PairContactFaces(MPI_Comm comm, const io::FeMesh &mesh, const Fac
                NodeName(mesh, p).c_str(), spec.pad_set.c_str());
     pt.nodes.push_back({dp, 1.0});
     // A disc node joins this point: it must be free and, since ContactSet keeps each DOF in one
-    // point (the linearisation eliminates each normal constraint through its own DOFs, method.md
+    // point (the linearisation eliminates each normal constraint through its own DOFs, docs/method.md
     // §4), used by no other pad node. Returns the pad node already using it, or -1.
     auto take_disc = [&](long d, std::array<PetscInt, 3> &dd) -> long {
       PetscCheck(dofs(d, dd), comm, kErrInput,

@@ -3,7 +3,7 @@
 transient of the same reduced model, both in one squeal run (the command after --, analyses
 stability, energy, shooting, transient), or from two finished runs: --shooting FILE for the
 shooting run's results and --output for the transient's, no command (the 31119-DOF pad, whose
-transient takes an hour: README "Limit cycles of the reduced pads"). The transient starts from a small multiple of the
+transient takes an hour: docs/records.md "Limit cycles of the reduced pads"). The transient starts from a small multiple of the
 unstable mode, not from the shooting solution, so the two are independent routes to the cycle.
 Checks:
   - shooting converged in at most --max-iterations Newton iterations from the energy estimate;

@@ -104,7 +104,7 @@ TEST(Sweep, CriticalMuOfReferenceCases)
     SweepResult r;
     ASSERT_EQ(sw.Solve(r), 0);
     ASSERT_EQ(r.critical_mu.size(), 1u);
-    // method.md §8 gives mu_c to 6 digits (bisection to 1e-8).
+    // docs/method.md §8 gives mu_c to 6 digits (bisection to 1e-8).
     EXPECT_NEAR(r.critical_mu[0], c.mu_c, 1e-6) << c.friction << " V = " << c.V;
     EXPECT_GT(r.coalescence_frequency[0], 85.0);
     EXPECT_LT(r.coalescence_frequency[0], 95.0);
@@ -123,7 +123,7 @@ TEST(Sweep, CriticalMuOfReferenceCases)
 
 TEST(Sweep, UndampedPlanarCriticalMuIsKtbOverKnb)
 {
-  // c = 0: mu_c = K_tb / K_nb (method.md §4.5), independent of V.
+  // c = 0: mu_c = K_tb / K_nb (docs/method.md §4.5), independent of V.
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-model_c", "0"), 0);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-sweep_v_n", "2"), 0);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-sweep_v_min", "0.75"), 0);

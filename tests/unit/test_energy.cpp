@@ -1,4 +1,4 @@
-// Energy estimate of the limit-cycle amplitude (method.md §7).
+// Energy estimate of the limit-cycle amplitude (docs/method.md §7).
 #include "dense.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"

@@ -1,4 +1,4 @@
-// Shooting (method.md §6): convergence from the energy estimate, agreement with the transient's
+// Shooting (docs/method.md §6): convergence from the energy estimate, agreement with the transient's
 // settled cycle, the matrix-free Jacobian against a dense finite-difference one, Floquet check.
 #include "dense.h"
 #include "squeal/energy/energy.h"
@@ -79,7 +79,7 @@ TEST(Shooting, BothCasesConvergeAndMatchTheTransient)
     ASSERT_GE(sr.trivial, 0);
     EXPECT_LT(std::abs(sr.floquet[sr.trivial] - 1.0), 1e-2);
     EXPECT_TRUE(sr.stable_cycle);
-    // Regimes of method.md §8.
+    // Regimes of docs/method.md §8.
     if (c.V == 3.0) {
       EXPECT_GT(sr.frac_separated, 0.1);
       EXPECT_EQ(sr.frac_stuck, 0.0);
@@ -236,10 +236,11 @@ TEST(Shooting, MatrixFreeFloquetMatchesDenseMonodromy)
 
 TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
 {
-  // Why the trivial multiplier of case 1 does not close on 1 as N_s grows (README, "Trivial Floquet
-  // multiplier"). Z1 = one step from Z0 is again an exact fixed point of the period map Phi, so the
-  // secant over the whole shift is exact: Phi(Z0 + d) - Phi(Z0) = d, d = Z1 - Z0. For a smooth Phi
-  // the secants over [0, s d] would all equal d up to O(|d|). The discrete map is only piecewise
+  // Why the trivial multiplier of case 1 does not close on 1 as N_s grows (docs/numerics.md,
+  // "Floquet multipliers: the average over one step"). Z1 = one step from Z0 is again an exact
+  // fixed point of the period map Phi, so the secant over the whole shift is exact:
+  // Phi(Z0 + d) - Phi(Z0) = d, d = Z1 - Z0. For a smooth Phi the secants over [0, s d] would all
+  // equal d up to O(|d|). The discrete map is only piecewise
   // smooth: the step in which the impact falls moves as the orbit shifts, so the secants differ
   // by an amount that does not shrink with h. That is the miss of the trivial multiplier of the
   // discrete map's own Jacobian (-shoot_floquet_phases 1), and the reason for the phase average.
@@ -304,7 +305,7 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
 
 TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
 {
-  // method.md §6: the product of the exact step tangents (statuses held fixed) against the 2N
+  // docs/method.md §6: the product of the exact step tangents (statuses held fixed) against the 2N
   // forward-difference flows, at the converged cycles of both cases (planar) and of
   // the 4-contact chain (dense back end, replicated on every rank under MPI).
   ThreeDofParams c1, c2;
@@ -530,7 +531,7 @@ TEST(Shooting, ExactTangentFlowMatchesFiniteDifferencesOfTheFlow)
 // Above -shoot_jacobian_dense_max, GMRES runs on exact tangent products preconditioned by the LU of
 // the sliding linearisation's bordered Jacobian (-shoot_linear_pc), with each step's contact factor
 // kept along the flow (-shoot_tangent_cache_mb). Newton must take the same iterates as with the
-// factorised exact Jacobian (the Krylov tolerance apart), on both cycles of method.md §8: one with
+// factorised exact Jacobian (the Krylov tolerance apart), on both cycles of docs/method.md §8: one with
 // separation, one with stick, where the linearisation is furthest from the cycle's tangent.
 TEST(Shooting, LinearisedPreconditionerTakesTheDenseNewtonIterates)
 {
@@ -620,7 +621,7 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
     EXPECT_LT(std::abs(pre.pre_period - ref.period), std::abs(pr.est.T0 - ref.period)) << "V = " << V;
     EXPECT_LT(std::abs(pre.pre_period / ref.period - 1.0), 1e-3) << "V = " << V;
     // Not 1e-10: the discrete cycle's period depends on where in a step its status changes fall,
-    // so on the phase Newton settles at (2.9e-7 and 8.6e-7 at 1000 steps, README "Continuation").
+    // so on the phase Newton settles at (2.9e-7 and 8.6e-7 at 1000 steps, docs/records.md "Continuation").
     EXPECT_NEAR(pre.period / ref.period, 1.0, 2e-6) << "V = " << V;
     EXPECT_LE(pre.iterations, ref.iterations) << "V = " << V;
   }
@@ -667,7 +668,8 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   TransientResult tr;
   ASSERT_EQ(ta.Run(pr.model, pr.eq, pr.stab, ti2, tr), 0);
   if (Rank0()) { // the orbit's summaries live on rank 0
-    // Not the equilibrium: the cycle lifts off for about half of each period (README: 48.5 %).
+    // Not the equilibrium: the cycle lifts off for about half of each period (README.md, "A worked
+    // example": 48.5 %).
     EXPECT_GT(defl.frac_separated, 0.3);
     EXPECT_NEAR(tr.summary.period / defl.period, 1.0, 1e-4);
     for (int j = 0; j < 2; ++j) EXPECT_NEAR(tr.summary.peak_to_peak[j] / defl.peak_to_peak[j], 1.0, 1e-3) << "DOF " << j;

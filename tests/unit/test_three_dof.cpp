@@ -1,4 +1,4 @@
-// The reference 3-DOF system against closed forms (method.md §3.2, §4.2, §8) and dense solves.
+// The reference 3-DOF system against closed forms (docs/method.md §3.2, §4.2, §8) and dense solves.
 #include "dense.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/stability.h"
@@ -29,7 +29,7 @@ void Solve(Model &model, Solved &s, MPI_Comm comm = PETSC_COMM_WORLD)
 }
 
 // Eigenvalues of the 4x4 companion matrix of the reduced QEP written out by hand from
-// method.md §4.2 (M_r = m I, C_r = diag(c, c + mu N / V), K_r from K's entries): no library code.
+// docs/method.md §4.2 (M_r = m I, C_r = diag(c, c + mu N / V), K_r from K's entries): no library code.
 std::vector<std::complex<double>> CompanionReference(const ThreeDofParams &p)
 {
   PetscReal Kx[3][3], K[3][3];
@@ -76,7 +76,7 @@ TEST(ThreeDof, EquilibriumMatchesClosedForm)
   ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, p, model), 0);
   Solved s;
   Solve(model, s);
-  // (3.2) and the reference figures of method.md §8.
+  // (3.2) and the reference figures of docs/method.md §8.
   EXPECT_NEAR(s.eq.N[0], 338.1197846482994, 1e-9);
   const Eigen::VectorXd U = test::ToDense(s.eq.U);
   EXPECT_NEAR(U(0), 5.128039786740352e-4, 1e-15);

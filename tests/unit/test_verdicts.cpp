@@ -283,7 +283,7 @@ TEST(Verdicts, ChainOf200CellsUnstableByDefaultInItsBand)
 
 TEST(Verdicts, SweepTracksOneModeAcrossMu)
 {
-  // Case 1 (mu_c = 0.143068, method.md §8): after tracking, one slot holds the unstable mode at
+  // Case 1 (mu_c = 0.143068, docs/method.md §8): after tracking, one slot holds the unstable mode at
   // every grid point above mu_c, and its growth rate moves by less than the gap between the modes.
   SweepSolver sw(PETSC_COMM_WORLD);
   ASSERT_EQ(sw.SetFromOptions(3.0), 0);

@@ -2,7 +2,7 @@
 // speed and initial gap, plus the friction law and coefficient shared by all points.
 //
 // Point c contributes the columns h_{t,c}, h_{b,c}, h_{n,c} of the contact operator
-// H in R^{N x 3 n_c} (method.md §1.1): column h_{e,c} scatters weight * e_c onto the three
+// H in R^{N x 3 n_c} (docs/method.md §1.1): column h_{e,c} scatters weight * e_c onto the three
 // translational DOFs of each node of the point (weight +1 for the structure node, -1 for an
 // opposing deformable body), plus the point's explicit entries of that column, if any (a model
 // whose DOFs are not all node translations: the in-plane interface modes of a reduced model,
@@ -81,7 +81,7 @@ public:
   // Completes b = n x t and checks everything a file or a builder may get wrong: DOF indices
   // in [0, N), unit and orthogonal t and n, positive speed factors, finite numbers, no DOF
   // shared by two points' nodes, a non-zero h_n per point. With explicit entries also what the
-  // linearisation and the energy estimate assume of nodal contact (method.md §1.1, §4): the
+  // linearisation and the energy estimate assume of nodal contact (docs/method.md §1.1, §4): the
   // h_n of distinct points act on distinct DOFs (so each point's pivot DOF is in no other h_n,
   // and H_n^T H_n is diagonal) and H_n^T H_t = H_n^T H_b = 0. Collective; every rank holds the same set.
   PetscErrorCode Validate(MPI_Comm comm, PetscInt N);

@@ -1,4 +1,4 @@
-// The one-step contact problem on the local reactions (method.md §2, §5 (S6)-(S7)).
+// The one-step contact problem on the local reactions (docs/method.md §2, §5 (S6)-(S7)).
 //
 // Given the Delassus matrix W = H^T A^-1 H (3 n_c x 3 n_c, local (t, b, n) per point), the local
 // free velocity w_f = H^T v_f and the modified gap at the start of the step g~^i_n, find r with
@@ -115,7 +115,7 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPasses(const FixedPointParams &p, cons
 
 class LocalContactSolver {
 public:
-  // W is 3n_c x 3n_c; rho_scale multiplies the rules (2.4) (1 = method.md).
+  // W is 3n_c x 3n_c; rho_scale multiplies the rules (2.4) (1 = docs/method.md).
   void Setup(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, PetscReal rho_scale);
   // The same with W sparse (many contacts): the same passes, each O(nnz(W)); Solve then uses it
   // (SolveSized needs the dense Setup).

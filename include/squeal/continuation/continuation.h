@@ -1,5 +1,5 @@
 // Pseudo-arclength continuation of the periodic orbit (Z0, T) in one parameter, mu or V
-// (issue 11), on top of the public interface of squeal::Shooting (method.md §6).
+// (issue 11), on top of the public interface of squeal::Shooting (docs/method.md §6).
 //
 // Unknowns y = (Z0, T, lambda). Corrector (options prefix "cont_"): Newton on
 //     H = Z(Z0, T; lambda) - Z0,   p = G_a^T (Z0 - Z_a),   a = t . S (y - y_pred)

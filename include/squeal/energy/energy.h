@@ -1,4 +1,4 @@
-// Energy estimate of the limit-cycle amplitude (method.md §7).
+// Energy estimate of the limit-cycle amplitude (docs/method.md §7).
 //
 // For an unstable mode (lambda = sigma + i omega, phi normalised so that its largest tangential
 // contact component is 1) and the imposed motion U = U_e + q Re(phi e^{i omega t}):

@@ -1,4 +1,4 @@
-// The dense theta step (S4)-(S9) of ThetaIntegrator (method.md §5), written once as a template on
+// The dense theta step (S4)-(S9) of ThetaIntegrator (docs/method.md §5), written once as a template on
 // the sizes N (DOFs) and NC (contact points). Eigen::Dynamic gives the general kernel, used for any
 // model; a few small sizes are also instantiated with compile-time dimensions (FixedSizes below),
 // because on 3 x 3 data Eigen's run-time-sized products and vector expressions cost several times

@@ -1,4 +1,4 @@
-// Non-smooth theta-method with impulses and the modified normal displacement (method.md §5),
+// Non-smooth theta-method with impulses and the modified normal displacement (docs/method.md §5),
 // split like Siconos' Moreau-Jean step: free step, one-step contact problem, update.
 //
 // Once per step size h (SetUp):
@@ -69,7 +69,7 @@ public:
   PetscErrorCode SetUp(const Model &model, PetscReal h);
   // One step in place: (U, dU) at t_i -> t_{i+1}; r: local reactions (3 n_c, warm start in, result out).
   PetscErrorCode Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info);
-  // Exact tangent of the last step (method.md §6, "Exact tangent of the discrete step"), dense back
+  // Exact tangent of the last step (docs/method.md §6, "Exact tangent of the discrete step"), dense back
   // end only: the columns (dU, ddU) of a tangent at t_i become those at t_{i+1}, differentiating
   // (S4)-(S9) at the converged reactions r = r^{i+1} with every status held fixed; v_end: local
   // velocities H^T dU^{i+1} (for the slip directions). N x k columns, k arbitrary.

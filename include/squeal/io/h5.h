@@ -1,5 +1,5 @@
 // The results file. One HDF5 file per run, one group per analysis (/equilibrium, /stability,
-// /sweep, ...); the datasets are listed in the README ("Results file").
+// /sweep, ...); the datasets are listed in docs/user-guide.md ("Results file").
 //
 // Results are never lost or mixed:
 //  - Open() refuses to replace an existing file that is not a squeal results file (an HDF5 file

@@ -6,7 +6,7 @@
 
 namespace squeal {
 
-// The reference 3-DOF system (method.md §1.2, §8): a mass on three inclined springs pressed on
+// The reference 3-DOF system (docs/method.md §1.2, §8): a mass on three inclined springs pressed on
 // a moving surface. DOFs ordered (t, b, n) in the sliding frame, H = I; with spring_frame the
 // DOFs stay in the springs' (x, y, n) frame and the contact frame carries the rotation
 // (H = R_gamma^T), which must give identical results.

@@ -9,7 +9,7 @@
 // Its frame at the disc point x_d, with e the unit axis and a a point of it:
 //   n  the disc face's outward normal (it must point at the pad: checked),
 //   t  the disc's velocity direction there, e x (x_d - a) projected on the face and normalised
-//      (the counter-surface drags the pad along +t, method.md §1.1), b = n x t;
+//      (the counter-surface drags the pad along +t, docs/method.md §1.1), b = n x t;
 //   speed factor |e x (x_d - a)| / r_ref, so V_c = V r / r_ref for -contact_v V at r_ref;
 //   g0 = (x_p - x_d) . n.
 #pragma once

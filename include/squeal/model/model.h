@@ -1,4 +1,4 @@
-// The structural model  M U'' + C U' + K U = R + F  with its contact set (method.md §1).
+// The structural model  M U'' + C U' + K U = R + F  with its contact set (docs/method.md §1).
 //
 // One representation for every model: M, C, K are distributed PETSc AIJ matrices, F a Vec, and
 // the contact set is replicated. The built-in 3-DOF system, reduced FE models read from files

@@ -1,5 +1,5 @@
 // A finite-element brake pad on a rotating rigid disc: the project's own FE test model
-// (method.md §9).
+// (docs/method.md §9).
 //
 // Geometry: an annular sector of the disc plane z = 0 (inner radius r_in, outer radius r_out,
 // opening angle `angle`, centred on the x axis), extruded in +z: a friction-material layer of
@@ -9,7 +9,7 @@
 // Discretisation: 8-node trilinear hexahedra on a polar grid (n_r radial x n_t circumferential
 // x (n_fric + n_steel) through the thickness), 2x2x2 Gauss points, isotropic linear elasticity per
 // layer. Mass lumped by row sums (m_i = int rho N_i dV, positive, and sum m_i = rho * volume), so
-// M is diagonal and M_r = Q^T M Q stays SPD (method.md §4.2). Support springs to ground on the back
+// M is diagonal and M_r = Q^T M Q stays SPD (docs/method.md §4.2). Support springs to ground on the back
 // face (z = h_fric + h_steel): foundation stiffness per unit area k_n (along z) and k_t (along x
 // and y), lumped like the mass (k_i = k * int N_i dA), so refining the mesh keeps the physics.
 // Rayleigh damping C = a M + b K (K including the springs). Preload: pressure p on the back face,

@@ -1,5 +1,5 @@
 // Craig-Bampton reduction of a model to its contact DOFs plus fixed-interface modes
-// (method.md §4.4 route (b), §9), options prefix "reduce_".
+// (docs/method.md §4.4 route (b), §9), options prefix "reduce_".
 //
 // Partition the DOFs into the interface B (every translational DOF of every contact node, in the
 // contact order: point c's node DOFs x, y, z at 3c .. 3c+2) and the interior I (the rest).
@@ -25,7 +25,7 @@
 // (PCREDUNDANT around the same Cholesky) and solves its share of the 3 n_c constraint-mode columns
 // with no communication; the rows of Psi then go to their owners in one all-to-all. MUMPS's
 // distributed solve phase with all the right-hand sides was no faster on 2 ranks than on one, and
-// the scatter of its distributed solution into W came on top (README, MPI speed-ups, item a).
+// the scatter of its distributed solution into W came on top (docs/records.md, MPI speed-ups, item a).
 // The price: every rank holds a whole factor, and the factorisation itself no longer splits.
 // Interface reduction (-reduce_interface_modes k and/or -reduce_interface_fmax f; default off):
 // each contact node's 3 interface DOFs are rotated to its frame (t, b, n); the n_c normal DOFs

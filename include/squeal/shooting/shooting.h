@@ -1,4 +1,4 @@
-// Shooting for the periodic orbit with the period as unknown (method.md §6).
+// Shooting for the periodic orbit with the period as unknown (docs/method.md §6).
 //
 // Unknowns x = (Z0, T), Z = (U, dU) in R^{2N}. The discrete flow Z(Z0, T) runs N_s steps of the
 // theta-method (integration/theta.h) with h = T / N_s, every evaluation starting the contact
@@ -16,14 +16,14 @@
 // when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate x_k, dT being the Newton
 // correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
 // Floquet multipliers: eigenvalues of the monodromy matrix, from the exact tangents of the steps
-// (method.md §6, statuses held fixed; dense theta back end) or from 2N forward differences
+// (docs/method.md §6, statuses held fixed; dense theta back end) or from 2N forward differences
 // (delta = fd_step ||U0|| for displacement columns, fd_step ||dU0|| for velocity columns), or
 // for large models the leading ones by SLEPc on a matrix-free product. The discrete period map is
 // only piecewise smooth along the orbit (the step that holds an impact moves with the phase), so
 // its own trivial multiplier misses 1 by ~1e-3 whatever h. The monodromy is therefore averaged
 // over -shoot_floquet_phases starting points spread over one step of the orbit (Z0 + s (Z1 - Z0),
 // s at the midpoints of [0, 1)): the average is the derivative of the phase-averaged map, whose
-// trivial multiplier closes on 1 (README). The trivial multiplier (closest to 1) is reported as
+// trivial multiplier closes on 1 (docs/numerics.md). The trivial multiplier (closest to 1) is reported as
 // an accuracy check.
 #pragma once
 
@@ -122,7 +122,7 @@ public:
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
   PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
   PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
-  // The same matrix as the product of the exact step tangents along one flow (method.md §6),
+  // The same matrix as the product of the exact step tangents along one flow (docs/method.md §6),
   // statuses held fixed: no finite-difference error, one flow instead of 2N + 1. Dense back end.
   PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
   // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell

@@ -1,4 +1,4 @@
-// Steady sliding equilibrium (method.md §3).
+// Steady sliding equilibrium (docs/method.md §3).
 //
 // With every point closed and sliding, r_T,c = (mu N_c, 0) and, with B_mu = H_n + mu H_t,
 //     [ K      -B_mu ] { U_e }   {  F      }

@@ -1,4 +1,4 @@
-// Linearisation of steady sliding and its reduction to a regular QEP (method.md §4.1-4.2).
+// Linearisation of steady sliding and its reduction to a regular QEP (docs/method.md §4.1-4.2).
 //
 // About the equilibrium (U_e, N), with the closed points held closed (H_n^T u = 0):
 //     M u'' + (C + D_b) u' + K u = B_mu nu,      D_b = H_b diag(mu N_c / V_c) H_b^T (planar; 0 rectilinear)
@@ -7,7 +7,7 @@
 //     (lambda^2 M_r + lambda C_r + K_r) xi = 0,   M_r = L M Q, C_r = L (C + D_b) Q, K_r = L K Q.   (4.5)
 // Q eliminates, for each closed point, its pivot DOF (largest |n| component) in favour of the
 // point's other DOFs: Q is sparse, exactly the deletion of the normal DOF for nodal contact in
-// local frames (the 3-DOF case gives M_r = m I_2 as in method.md), and valid for any frame.
+// local frames (the 3-DOF case gives M_r = m I_2 as in docs/method.md), and valid for any frame.
 // Released points carry no reaction and are not constrained.
 #pragma once
 

@@ -1,8 +1,8 @@
-// Linear stability of steady sliding (method.md §4.3-4.4): the regular QEP (4.5) solved by
+// Linear stability of steady sliding (docs/method.md §4.3-4.4): the regular QEP (4.5) solved by
 // SLEPc PEP (TOAR, shift-and-invert about a real target, scalar scaling), options prefix
 // "stab_" (-stab_pep_nev, -stab_pep_target, -stab_st_*, ...).
 //
-// Route: route (a) of method.md, the PEP on the full reduced problem, for every model size.
+// Route: route (a) of docs/method.md, the PEP on the full reduced problem, for every model size.
 // It computes the eigenvalues nearest the target 0 (the lowest |lambda|) and grows nev until the
 // band is covered (-stab_fmax, default 20 kHz, the audible band; -stab_nev_max caps the growth).
 //

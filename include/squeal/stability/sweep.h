@@ -1,4 +1,4 @@
-// Stability maps (method.md §4.5): eigenvalues over a grid of mu (and V), and the critical
+// Stability maps (docs/method.md §4.5): eigenvalues over a grid of mu (and V), and the critical
 // friction coefficient mu_c, the first mu at which the largest growth rate of an oscillatory
 // mode crosses zero, with the frequency at which the modes coalesce.
 //
