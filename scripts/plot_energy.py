@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Energy estimate of a squeal results file: mean damping power and mean (saturated) reaction
-power against the modal amplitude q, and their first balance q0 (method.md §7).
+power against the modal amplitude q, and their first balance q0 (docs/method.md §7).
 
     plot_energy.py RESULTS.h5 [RESULTS2.h5 ...] -o energy.png [--label LABEL ...]
 """

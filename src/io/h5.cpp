@@ -167,7 +167,7 @@ PetscErrorCode H5Writer::Open(MPI_Comm comm, const char *path)
     }
   }
   open_ = true;
-  PetscCall(WriteAttribute("/", "creator", "squeal results file (see README, Results file)"));
+  PetscCall(WriteAttribute("/", "creator", "squeal results file (see docs/user-guide.md, Results file)"));
   PetscCall(SetStatus("running"));
   PetscFunctionReturn(0);
 }

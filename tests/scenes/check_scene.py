@@ -14,7 +14,7 @@ The command (squeal ... -output FILE.h5, possibly under mpiexec) must exit 0 and
   --critical-mu MU --mu-rtol R every entry of the /sweep attribute critical_mu within R of MU
   --sweep-v V [V ...]          /sweep/V holds exactly these speeds (one critical_mu each)
 
-Reference values come from the test definitions (method.md §8 numbers), not from the program.
+Reference values come from the test definitions (docs/method.md §8 numbers), not from the program.
 """
 import argparse
 import math
