@@ -68,24 +68,32 @@ PetscErrorCode H5Writer::CheckOpen()
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// The root string attribute `name` of the open file `f` if it has at most 63 characters, else "".
+std::string RootStringAttribute(hid_t f, const char *name)
+{
+  char buf[64] = {0};
+  if (H5Aexists(f, name) <= 0) return "";
+  const hid_t a = H5Aopen(f, name, H5P_DEFAULT);
+  const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
+  const bool  ok = t >= 0 && H5Tget_class(t) == H5T_STRING && H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0;
+  if (t >= 0) H5Tclose(t);
+  if (a >= 0) H5Aclose(a);
+  return ok ? std::string(buf) : std::string();
+}
+
+} // namespace
+
 bool H5Writer::IsResultsFile(const char *path)
 {
   QuietHDF5();
   if (H5Fis_hdf5(path) <= 0) return false;
   const hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
   if (f < 0) return false;
-  bool ours = false;
-  if (H5Aexists(f, "creator") > 0) {
-    const hid_t a = H5Aopen(f, "creator", H5P_DEFAULT);
-    const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
-    char        buf[64] = {0};
-    if (t >= 0 && H5Tget_class(t) == H5T_STRING && H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
-      ours = std::strncmp(buf, "squeal", 6) == 0;
-    if (t >= 0) H5Tclose(t);
-    if (a >= 0) H5Aclose(a);
-  } else {
-    ours = H5Lexists(f, "/model", H5P_DEFAULT) > 0; // written before the creator attribute existed
-  }
+  bool ours;
+  if (H5Aexists(f, "creator") > 0) ours = RootStringAttribute(f, "creator").rfind("squeal", 0) == 0;
+  else ours = H5Lexists(f, "/model", H5P_DEFAULT) > 0; // written before the creator attribute existed
   H5Fclose(f);
   return ours;
 }
@@ -95,16 +103,7 @@ bool H5Writer::IsCompleteResultsFile(const char *path)
   if (!IsResultsFile(path)) return false;
   const hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
   if (f < 0) return false;
-  bool complete = false;
-  if (H5Aexists(f, "status") > 0) {
-    const hid_t a = H5Aopen(f, "status", H5P_DEFAULT);
-    const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
-    char        buf[16] = {0};
-    if (t >= 0 && H5Tget_class(t) == H5T_STRING && H5Tget_size(t) < sizeof buf && H5Aread(a, t, buf) >= 0)
-      complete = std::strcmp(buf, "complete") == 0;
-    if (t >= 0) H5Tclose(t);
-    if (a >= 0) H5Aclose(a);
-  }
+  const bool complete = RootStringAttribute(f, "status") == "complete";
   H5Fclose(f);
   return complete;
 }
