@@ -367,7 +367,17 @@ PetscErrorCode RunApp(int argc, char **argv)
   for (PetscInt i = 0; i < nnames; ++i) PetscCall(PetscFree(names[i]));
   PetscCall(perr);
 
-  // Read every component's options up front (cheap) so that a typo is caught before hours of work.
+  // Read every component's options up front (cheap) so that a typo is caught before hours of work:
+  // first without building anything (a CalculiX import and its reduction take minutes), then for
+  // real, with the PETSc objects' own options.
+  if (!help) {
+    Model dry(comm);
+    dry.contacts.V = 1; // the sweep's default speed range; values read here are thrown away
+    PetscCall(ModelCreateFromOptions(comm, dry, nullptr, nullptr, true));
+    Components k_dry(comm);
+    PetscCall(k_dry.SetFromOptions(dry, req));
+    PetscCall(CheckUnknownSquealOptions(comm));
+  }
   Model       model(comm);
   std::string export_dir;
   bool        reduced = false;

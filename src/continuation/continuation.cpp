@@ -81,7 +81,7 @@ PetscErrorCode Continuation::SetFromOptions()
   SquealOptionsReal("-jump_tol", "Report a monodromy jump when a non-trivial |multiplier| changes by more than this between points",
                     "Continuation", &jump_tol, Range::Positive(), checks);
   SquealOptionsReal("-min_amplitude", "A leg ends (Hopf point) when the amplitude falls below this fraction of the start's",
-                    "Continuation", &min_amplitude, Range::NonNegative(), checks);
+                    "Continuation", &min_amplitude, Range::Closed(0.0, 1.0), checks);
   PetscCall(PetscOptionsBool("-equilibrium", "Stability of the sliding equilibrium at every point (Hopf point, hysteresis)",
                              "Continuation", equilibrium, &equilibrium, nullptr));
   PetscCall(PetscOptionsBool("-both", "Both directions from the start point (else towards -cont_max only)", "Continuation", both,
@@ -283,6 +283,12 @@ PetscErrorCode Continuation::Corrector(const State &last, const State &pred, con
     PetscCall(InterruptRequested(comm_, &interrupted_));
     if (interrupted_) {
       why = std::string("interrupted by ") + InterruptSignalName();
+      PetscFunctionReturn(0);
+    }
+    if (!(y.T > 0) || !(y.lambda > 0 || (param == "mu" && y.lambda == 0))) {
+      // A corrector step past T = 0 or V = 0 (seen on case 1 in V near 1.25 m/s) is a failed step
+      // to halve, not an error of the integrator's set-up.
+      why = "the corrector left the physical domain (T = " + std::to_string(y.T) + " s, " + param + " = " + std::to_string(y.lambda) + ")";
       PetscFunctionReturn(0);
     }
     PetscCall(SetParamAt(y.lambda, y.T));
@@ -544,6 +550,8 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   step_count_ = halvings_ = flows_ = 0;
   interrupted_            = false;
   const PetscReal lambda0 = GetParam(model);
+  res.range_lo            = both ? lmin : lambda0;
+  res.range_hi            = down_only_ ? lambda0 : lmax;
   PetscCheck(lambda0 >= lmin && lambda0 <= lmax, comm_, kErrInput,
              "continuation: the scene's %s = %g is outside [-cont_min, -cont_max] = [%g, %g]; widen the range", param.c_str(),
              (double)lambda0, (double)lmin, (double)lmax);
@@ -570,7 +578,9 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     PetscCall(VecNorm(s0.dU, NORM_2, &sdu_));
     if (!(su_ > 0)) su_ = 1;
     if (!(sdu_ > 0)) sdu_ = 1;
-    sT_ = s0.T, sl_ = lmax - lmin;
+    // The parameter's scale in the arclength: the range's width, but no wider than the default
+    // range (with -cont_max 1e6 the first step of ds = 0.05 jumped 5e4 m/s, to the range's end).
+    sT_ = s0.T, sl_ = std::min(lmax - lmin, param == "mu" ? (PetscReal)0.6 : (PetscReal)10.0);
   }
   // Work space of the corrector: the shooting state (U, dU, T) and the bordered one (+ lambda).
   PetscMPIInt rank, size;
@@ -772,6 +782,8 @@ PetscErrorCode Continuation::RunSlices(ContinuationResult &res)
     for (auto &l : located)
       if (l.type == e.type && l.lo >= e.lo - 1e-12 && l.hi <= e.hi + 1e-12) e.param = l.param, e.lo = l.lo, e.hi = l.hi;
   res.param_name       = param;
+  res.range_lo         = lmin;
+  res.range_hi         = lmax;
   res.halvings         = tot[0];
   res.flow_evaluations = tot[1];
   res.interrupted      = tot[2] > 0;
@@ -916,6 +928,15 @@ PetscErrorCode Continuation::Detect(ContinuationResult &res)
   PetscFunctionReturn(0);
 }
 
+bool ContinuationResult::Covered() const
+{
+  if (points.empty() || interrupted) return false;
+  PetscReal lo = kInf, hi = -kInf;
+  for (const ContinuationPoint &p : points) lo = std::min(lo, p.param), hi = std::max(hi, p.param);
+  const PetscReal tol = 1e-9 * std::max(range_hi - range_lo, (PetscReal)1e-300);
+  return lo <= range_lo + tol && hi >= range_hi - tol;
+}
+
 PetscErrorCode Continuation::View(const ContinuationResult &res, PetscViewer viewer) const
 {
   PetscBool ascii;
@@ -932,6 +953,14 @@ PetscErrorCode Continuation::View(const ContinuationResult &res, PetscViewer vie
                                    res.points.empty() ? 0.0 : (double)fl / res.points.size()));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   for (auto &e : res.leg_end) PetscCall(PetscViewerASCIIPrintf(viewer, "leg: %s\n", e.c_str()));
+  if (!res.points.empty()) {
+    const auto mm = std::minmax_element(res.points.begin(), res.points.end(),
+                                        [](const ContinuationPoint &a, const ContinuationPoint &b) { return a.param < b.param; });
+    PetscCall(PetscViewerASCIIPrintf(viewer, "%s: %s from %.6g to %.6g of the range [%.6g, %.6g] asked%s\n",
+                                     res.Covered() ? "complete" : "partial", res.param_name.c_str(), (double)mm.first->param,
+                                     (double)mm.second->param, (double)res.range_lo, (double)res.range_hi,
+                                     res.Covered() ? "" : " (each leg above says why it stopped)"));
+  }
   PetscCall(PetscViewerASCIIPrintf(viewer, "%10s %12s %12s %7s %7s %9s %9s %s\n", res.param_name.c_str(), "T (s)", "ampl. (m)", "sep %",
                                    "stick %", "max|L|", "eq. unst", "cycle"));
   for (auto &p : res.points)
@@ -986,6 +1015,8 @@ PetscErrorCode Continuation::Write(const ContinuationResult &res, io::H5Writer &
   PetscCall(out.WriteAttribute("/continuation", "flow_evaluations", res.flow_evaluations));
   PetscCall(out.WriteAttribute("/continuation", "seconds", res.seconds));
   PetscCall(out.WriteAttribute("/continuation", "interrupted", (PetscInt)res.interrupted));
+  PetscCall(out.WriteAttribute("/continuation", "complete", (PetscInt)res.Covered()));
+  PetscCall(out.WriteAttribute("/continuation", "range", std::vector<PetscReal>{res.range_lo, res.range_hi}));
   std::string legs;
   for (auto &e : res.leg_end) legs += (legs.empty() ? "" : "; ") + e;
   PetscCall(out.WriteAttribute("/continuation", "leg_end", legs.c_str()));

@@ -79,6 +79,32 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
+{
+  static const char *const ours[]    = {"model_", "contact_", "reduce_", "stab_", "eq_", "sweep_",
+                                        "theta_", "transient_", "energy_", "shoot_", "cont_"};
+  static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_",
+                                        "_ds_", "_rg_", "_fn_", "_mat_", "_svd_", "_view", "_monitor", "converged_reason"};
+  PetscInt    n     = 0;
+  char      **names = nullptr, **values = nullptr;
+  std::string unknown;
+  int         count = 0;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsLeftGet(nullptr, &n, &names, &values));
+  for (PetscInt i = 0; i < n; ++i) {
+    bool squeal = false, object = false;
+    for (const char *p : ours) squeal = squeal || std::strncmp(names[i], p, std::strlen(p)) == 0;
+    for (const char *o : objects) object = object || std::strstr(names[i], o) != nullptr;
+    if (!squeal || object) continue;
+    if (count < 5) unknown += std::string(count ? ", -" : "-") + names[i];
+    ++count;
+  }
+  PetscCall(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  PetscCheck(count == 0, comm, kErrInput, "unknown option%s %s%s (mistyped? see -help)", count > 1 ? "s" : "", unknown.c_str(),
+             count > 5 ? ", ..." : "");
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CheckYAMLFile(MPI_Comm comm, const char *path)
 {
   PetscMPIInt rank;

@@ -481,7 +481,7 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir, bool *reduced)
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir, bool *reduced, bool options_only)
 {
   const char *const types[] = {"three_dof", "chain", "file", "pad", "calculix"};
   const char *const laws[]  = {"planar", "rectilinear"};
@@ -597,19 +597,20 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
   ccx.mu         = p.mu;
   ccx.V          = p.V;
   ccx.law        = p.law;
-  switch (type) {
-  case 0: PetscCall(BuildThreeDof(comm, p, model)); break;
-  case 1: PetscCall(BuildChain(comm, ch, model)); break;
-  case 3: PetscCall(BuildPad(comm, pad, model)); break;
-  case 4: PetscCall(BuildCalculix(comm, ccx, model)); break;
-  default: PetscCall(BuildFromFiles(comm, fs, model)); break;
-  }
+  if (!options_only) switch (type) {
+    case 0: PetscCall(BuildThreeDof(comm, p, model)); break;
+    case 1: PetscCall(BuildChain(comm, ch, model)); break;
+    case 3: PetscCall(BuildPad(comm, pad, model)); break;
+    case 4: PetscCall(BuildCalculix(comm, ccx, model)); break;
+    default: PetscCall(BuildFromFiles(comm, fs, model)); break;
+    }
   // -reduce_type craig_bampton replaces the validated full model by its reduction; the sweep,
   // which builds one model per rank on PETSC_COMM_SELF, then reduces once per rank.
   {
     CraigBampton cb(comm);
     bool         reduce = false;
     PetscCall(cb.SetFromOptions(&reduce));
+    if (options_only) PetscFunctionReturn(0);
     if (reduced) *reduced = reduce && !help;
     if (reduce && !help) {
       Model red(comm);

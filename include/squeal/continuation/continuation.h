@@ -70,6 +70,10 @@ struct ContinuationResult {
   PetscInt                       halvings = 0, flow_evaluations = 0;
   PetscReal                      seconds = 0;
   bool                           interrupted = false; // SIGINT/SIGTERM stopped the run between points
+  PetscReal                      range_lo = 0, range_hi = 0; // the range asked ([start, max] for one leg)
+
+  // The branch reaches both ends of the range asked (to 1e-9 of its width).
+  bool Covered() const;
 };
 
 class Continuation {

@@ -36,6 +36,13 @@ PetscErrorCode CheckReal(MPI_Comm comm, const char *prefix, const char *name, Pe
 // the run did not do must not turn a complete run into a failed one.
 PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views);
 
+// The same check in the first second of a run, before any model is built: only squeal's own
+// options (-model_, -contact_, -reduce_, -stab_, -eq_, -sweep_, -theta_, -transient_, -energy_,
+// -shoot_, -cont_ prefixes) that are not options of a PETSc/SLEPc object under them (_ksp_, _pc_,
+// _eps_, ...: read when that object is set up, after the model is built) are judged here; the
+// rest waits for CheckUnusedOptions.
+PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm);
+
 // Parses a YAML file (rank 0) and fails naming the file, line and column of a syntax error;
 // PETSc's own loader says only "YAML parser loading error". Collective.
 PetscErrorCode CheckYAMLFile(MPI_Comm comm, const char *path);
