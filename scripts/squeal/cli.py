@@ -61,6 +61,8 @@ def _summary(name, g):
         failed = int(np.count_nonzero(g["failed"])) if "failed" in g else 0
         return f"{where} x {V.size} V; " + "; ".join(parts) + (f"; {failed} failed point(s)" if failed else "")
     if name == "energy":
+        if a.get("stable", 0):
+            return "no estimate: no unstable mode in the band"
         if not a.get("found", 0):
             return f"mode {_g(a.get('mode'))}: no balance found" + ("" if "q" in g else " (no amplitude scan)")
         return f"mode {_g(a.get('mode'))}: balance q0 = {_g(a.get('q0'), '.6g')} m, T0 = {_g(a.get('T0'), '.6g')} s"

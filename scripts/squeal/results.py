@@ -108,14 +108,17 @@ class Stability(Group):
     def verdict(self):
         """The run's three-way verdict (docs/user-guide.md, Band-complete stability) in words."""
         a = self.attrs
-        band = f"{a.get('fmin', 0):g}-{a.get('fmax', 0):g} Hz"
-        un = self.unstable
+        fmin = a.get("fmin", 0)
+        band = f"{fmin:g}-{a.get('fmax', 0):g} Hz"
+        un, ev = self.unstable, self.eigenvalues
+        below = int(np.count_nonzero((ev[:, 0] > 0) & (ev[:, 1] / (2 * math.pi) < fmin)))
+        below = f"; {below} unstable mode(s) below fmin, not reported" if below else ""
         if un.size:
-            ev = self.eigenvalues[un[0]]
-            return (f"UNSTABLE: {un.size} unstable mode(s) in the band {band}; most unstable "
-                    f"{ev[1] / (2 * math.pi):.6g} Hz, sigma = {ev[0]:.6g} 1/s")
+            s, w = ev[un[0]]
+            return (f"UNSTABLE: {un.size} unstable mode(s){f' above fmin = {fmin:g} Hz' if fmin > 0 else ''}; most "
+                    f"unstable {w / (2 * math.pi):.6g} Hz, sigma = {s:.6g} 1/s{below}")
         if a.get("band_covered", 0) or a.get("all_eigenvalues", 0):
-            return f"stable in the band {band}"
+            return f"stable in the band {band}{below}"
         return (f"stability undecided: {self.eigenvalues.shape[0]} eigenvalue(s) computed, "
                 f"complete up to {a.get('complete_up_to', float('nan')):g} Hz")
 
