@@ -37,3 +37,9 @@ def save_png(fig, out, dpi=None):
     buf.seek(0)
     with Image.open(buf) as im:
         im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(out, optimize=True)
+
+
+def save_tight(fig, out, dpi):
+    """Save cropped to what is drawn (labels outside the axes included) and free the figure."""
+    fig.savefig(out, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)

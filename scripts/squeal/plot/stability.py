@@ -11,7 +11,7 @@ import os
 import numpy as np
 
 from ..results import PROG, fail, open_results
-from .common import check_out_dir, house_style, plt
+from .common import check_out_dir, house_style, plt, save_tight
 
 
 def read_stability(path):
@@ -87,8 +87,7 @@ def plot(ev, info, out, mirror=False, title=None, dpi=120, source=""):
         ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, borderaxespad=0.0)
 
-    fig.savefig(out, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    save_tight(fig, out, dpi)
 
 
 def main(argv=None, prog=PROG):

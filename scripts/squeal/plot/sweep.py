@@ -22,7 +22,10 @@ import os
 import numpy as np
 
 from ..results import PROG, fail, open_results
-from .common import check_out_dir, house_style, plt
+from .common import check_out_dir, house_style, plt, save_tight
+
+DESCRIPTION = ("Plot growth rate and frequency of every eigenvalue against the friction coefficient from the /sweep "
+               "group of squeal results files.")
 
 
 def read_sweep(path):
@@ -86,15 +89,11 @@ def plot(series, out, title=None, dpi=120):
     fig.align_ylabels((ax_s, ax_f))
 
     check_out_dir(out)
-    fig.savefig(out, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    save_tight(fig, out, dpi)
 
 
 def main(argv=None, prog=PROG):
-    ap = argparse.ArgumentParser(
-        prog=prog,
-        description="Plot growth rate and frequency of every eigenvalue against the friction "
-                    "coefficient from the /sweep group of squeal results files.")
+    ap = argparse.ArgumentParser(prog=prog, description=DESCRIPTION)
     ap.add_argument("files", nargs="+", metavar="RESULTS.h5", help="squeal results file(s) with a /sweep group")
     ap.add_argument("-o", "--output", required=True, metavar="OUT.png", help="output image (PNG)")
     ap.add_argument("--label", action="append", default=[], metavar="LABEL",
