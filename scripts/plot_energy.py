@@ -1,59 +1,15 @@
 #!/usr/bin/python3
-"""Energy estimate of a squeal results file: mean damping power and mean (saturated) reaction
-power against the modal amplitude q, and their first balance q0 (docs/method.md §7).
+"""Energy estimate of a squeal results file: mean damping and reaction power against the modal amplitude.
 
     plot_energy.py RESULTS.h5 [RESULTS2.h5 ...] -o energy.png [--label LABEL ...]
+
+The code is squeal.plot.energy (scripts/squeal/plot/energy.py); also `squeal_cli.py plot energy ...`.
 """
-import argparse
+import os
+import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from squeal_results import analysis_group, fail  # noqa: E402
-
-
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("files", nargs="+")
-    ap.add_argument("-o", "--output", required=True)
-    ap.add_argument("--label", action="append", default=[])
-    ap.add_argument("--dpi", type=int, default=120)
-    ap.add_argument("--span", type=float, default=3.0, help="plot q up to this multiple of the largest q0")
-    a = ap.parse_args()
-    if a.label and len(a.label) != len(a.files):
-        fail("give one --label per file")
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    qmax, pmax = 0.0, 0.0
-    for i, path in enumerate(a.files):
-        with analysis_group(path, "energy") as (f, g):
-            if "q" not in g:
-                fail(f"'{path}' has no amplitude scan in /energy (the sliding equilibrium was stable)")
-            q, pc, pr = g["q"][()] * 1e3, g["P_damping"][()], g["P_reactions"][()]
-            label = a.label[i] if a.label else path
-            c = colours[i % len(colours)]
-            ax.plot(q, pr, color=c, lw=1.8, label=f"{label}: reactions $\\bar P_R$")
-            ax.plot(q, pc, color=c, lw=1.2, ls="--", label=f"{label}: damping $\\bar P_c$")
-            if g.attrs.get("found", 0):
-                q0 = g.attrs["q0"] * 1e3
-                ax.axvline(q0, color=c, lw=0.8, ls=":")
-                k = abs(q - q0).argmin()
-                ax.plot([q0], [pc[k]], "o", color=c, label=f"{label}: $q_0$ = {q0:.3f} mm")
-                qmax = max(qmax, a.span * q0)
-            sel = q <= (qmax if qmax > 0 else q[-1])
-            pmax = max(pmax, pr[sel].max(), pc[sel].max())
-    ax.set_xlabel("modal amplitude q (mm, largest tangential contact component of $\\phi$)")
-    ax.set_ylabel("mean power over a period (W)")
-    ax.set_xlim(0, qmax if qmax > 0 else None)
-    ax.set_ylim(0, 1.1 * pmax if pmax > 0 else None)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title("Energy estimate of the limit-cycle amplitude")
-    fig.tight_layout()
-    fig.savefig(a.output, dpi=a.dpi)
-    print(f"plot_energy: wrote {a.output}")
-
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from squeal.plot.energy import main  # noqa: E402
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -20,10 +20,13 @@ import os
 import re
 import subprocess
 import tempfile
+import sys
 import time
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from squeal.results import Results  # noqa: E402
 
 
 def run(cmd, np_):
@@ -39,14 +42,13 @@ def run(cmd, np_):
 
 
 def unstable(h5):
-    with h5py.File(h5, "r") as f:
-        ev = f["/stability/eigenvalues"][()]
-        idx = np.atleast_1d(f["/stability/unstable"][()]).astype(int) if "/stability/unstable" in f else []
+    with Results(h5) as r:
+        ev, idx = r.stability.eigenvalues, r.stability.unstable
         lam = ev[:, 0] + 1j * ev[:, 1]
         return lam, np.array([lam[i] for i in idx])
 
 
-def main():
+def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--squeal", default="build/squeal")
     ap.add_argument("--scene", default="examples/pad/pad.yaml")
@@ -58,7 +60,7 @@ def main():
     ap.add_argument("--interface-modes", type=int, nargs="+", default=[-1],
                     help="in-plane interface modes kept (-reduce_interface_modes; -1: no interface reduction)")
     ap.add_argument("--extra", nargs=argparse.REMAINDER, default=[])
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     tmp = tempfile.mkdtemp(prefix="reduction_report_")
     base = [a.squeal, "-scene", a.scene, "-analyses", "stability", "-eq_mat_mumps_icntl_14", "200"] + a.extra
     if a.full_h5:

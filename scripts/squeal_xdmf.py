@@ -18,8 +18,10 @@ import argparse
 import os
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from squeal.results import Results  # noqa: E402
 
 try:
     import meshio
@@ -54,8 +56,8 @@ def write_series(path, points, cells, dof, frames):
     return path
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv=None, prog=None):
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n")[0])
     ap.add_argument("results")
     ap.add_argument("-o", "--prefix")
     ap.add_argument("--phases", type=int, default=24)
@@ -63,24 +65,24 @@ def main(argv=None):
     a = ap.parse_args(argv)
     prefix = a.prefix or os.path.splitext(a.results)[0]
     written = []
-    with h5py.File(a.results, "r") as f:
-        if "mesh" not in f:
+    with Results(a.results) as r:
+        if r.mesh is None:
             sys.exit(f"squeal_xdmf.py: error: '{a.results}' has no /mesh group: only models read from an FE code "
                      "(-model_type calculix) carry their mesh")
-        points = f["mesh/x"][()]
-        dof = f["mesh/dof"][()].astype(np.int64)
-        cells = [(XDMF_TO_MESHIO[name], f["mesh/cells"][name][()]) for name in f["mesh/cells"]]
-        if "stability/unstable" in f and "stability/modes" in f:
-            re, im = f["stability/modes/re"], f["stability/modes/im"]
-            for rank, m in enumerate(f["stability/unstable"][()][:a.modes]):
-                phi = re[:, m] + 1j * im[:, m]
+        points = r.mesh["x"]
+        dof = r.mesh["dof"].astype(np.int64)
+        cells = [(XDMF_TO_MESHIO[name], r.mesh["cells"][name]) for name in r.mesh["cells"].keys()]
+        s = r.stability
+        if s is not None and "unstable" in s and "modes" in s:
+            for rank, m in enumerate(s.unstable[:a.modes]):
+                phi = s.mode(m)
                 frames = [(j / a.phases, np.real(phi * np.exp(2j * np.pi * j / a.phases))) for j in range(a.phases)]
                 written.append(write_series(f"{prefix}_mode{rank}.xdmf", points, cells, dof, frames))
-        if "shooting/orbit/U" in f:
-            t, U = f["shooting/orbit/t"][()], f["shooting/orbit/U"][()]
+        if "shooting/orbit/U" in r:
+            t, U = r.shooting["orbit/t"], r.shooting["orbit/U"]
             written.append(write_series(f"{prefix}_cycle.xdmf", points, cells, dof, zip(t, U)))
-        if "transient/U" in f and "transient/t" in f:
-            t, U = f["transient/t"][()], f["transient/U"][()]
+        if "transient/U" in r and "transient/t" in r:
+            t, U = r.transient["t"], r.transient["U"]
             written.append(write_series(f"{prefix}_transient.xdmf", points, cells, dof, zip(t, U)))
     if not written:
         sys.exit(f"squeal_xdmf.py: error: '{a.results}' holds no unstable mode, cycle or transient to write")

@@ -22,9 +22,13 @@ The functions are importable (tests/scenes/test_steady_state.py checks them on e
 """
 import argparse
 import math
+import os
 import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from squeal.results import Results  # noqa: E402
 
 T975 = {5: 2.571, 10: 2.228, 15: 2.131, 19: 2.093, 20: 2.086, 30: 2.042, 40: 2.021, 60: 2.000, 120: 1.980}
 
@@ -196,9 +200,9 @@ def analyse(x, t, batches=20, rtol=0.05):
                 lines=f, amplitudes=amp, names=names, bases=bases, verdict=verdict, evidence=evidence)
 
 
-def main(argv=None):
+def main(argv=None, prog=None):
     import h5py
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n")[0])
     ap.add_argument("results")
     ap.add_argument("--dof", type=int)
     ap.add_argument("--rtol", type=float, default=0.05)
@@ -206,20 +210,20 @@ def main(argv=None):
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--plot")
     a = ap.parse_args(argv)
-    with h5py.File(a.results, "r") as f:
-        if "transient/U" not in f:
+    with Results(a.results) as r:
+        if "transient/U" not in r:
             sys.exit(f"steady_state.py: error: '{a.results}' has no /transient records (run -analyses transient)")
-        g = f["transient"]
-        t = g["t"][()]
+        g = r.transient
+        t = g["t"]
         dof = a.dof if a.dof is not None else int(g.attrs.get("signal_dof", 0))
-        x = g["U"][:, dof]
-        rn = g["R"][:, :, 2].sum(axis=1) if "R" in g else None
+        x = g.dataset("U")[:, dof]
+        rn = g.dataset("R")[:, :, 2].sum(axis=1) if "R" in g else None
         modes = None
-        if "stability/unstable" in f and "stability/modes/re" in f and len(f["stability/unstable"]):
-            idx = f["stability/unstable"][()]
-            modes = (idx, f["stability/modes/re"][()][:, idx], f["stability/modes/im"][()][:, idx],
-                     f["stability/frequency"][()][idx])
-            U = g["U"][()]
+        st = r.stability
+        if st is not None and "modes/re" in st and st.unstable.size:
+            idx = st.unstable
+            modes = (idx, st["modes/re"][:, idx], st["modes/im"][:, idx], st.frequency[idx])
+            U = g["U"]
     res = analyse(x, t, a.batches, a.rtol)
     lv = res["levels"]
     print(f"steady state of DOF {dof}: start-up dropped before t = {res['t_cut']:.6g} s (MSER on the power per period, record {res['cut']} of {len(t)})")

@@ -94,13 +94,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-try:
-    import h5py  # noqa: E402
-except ImportError:  # pragma: no cover
-    sys.exit("work_precision.py: error: the h5py module is required (apt-get install python3-h5py)")
-
-PROG = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "work_precision.py"
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from squeal.plot.common import save_png  # noqa: E402
+from squeal.results import PROG, Results, fail, open_results  # noqa: E402
 
 CASES = (("case1", "case1_separation_slip.yaml", "case 1: V = 3 m/s (separation/slip)"),
          ("case2", "case2_stick_slip.yaml", "case 2: V = 0.75 m/s (stick/slip)"))
@@ -140,11 +137,6 @@ RE_SHOOT_PER = re.compile(r"limit cycle period\s+([-+0-9.eE]+)\s*s")
 RE_SHOOT_P2P = re.compile(r"^\s*peak-to-peak \(m\):\s*(.+)$", re.M)
 RE_SHOOT_REGIME = re.compile(r"regime:\s*(.+)")
 RE_SHOOT_PARTS = re.compile(r"(\d+)\s+period integrations \(Newton (\d+), Floquet (\d+)")
-
-
-def fail(msg):
-    print(f"{PROG}: error: {msg}", file=sys.stderr)
-    sys.exit(1)
 
 
 def warn(msg):
@@ -193,17 +185,11 @@ def read_transient_file(path):
     window) at full precision, plus the same over the preceding 20 % for the settling check."""
     if not os.path.isfile(path):
         fail(f"squeal did not write '{path}'")
-    with h5py.File(path, "r") as f:
-        if "transient" not in f:
-            fail(f"'{path}' has no /transient group")
-        g = f["transient"]
-        for name in ("t", "U"):
-            if name not in g:
-                fail(f"'{path}': /transient/{name} is missing")
-        t = np.asarray(g["t"][()], dtype=float)
-        U = np.asarray(g["U"][()], dtype=float)
-        attr_period = float(g.attrs["period"]) if "period" in g.attrs else None
-        complete = int(g.attrs["complete"]) if "complete" in g.attrs else 1
+    with Results(path) as r:
+        g = r.require("transient", ("t", "U"))
+        t, U = g.array("t"), g.array("U")
+        attr_period = float(g.period) if g.period is not None else None
+        complete = g.complete
     n = t.size
     if n < 10:
         fail(f"'{path}': only {n} records")
@@ -259,20 +245,16 @@ def analyse_shooting(proc, cmd, h5):
     """Period (/shooting/period) and peak-to-peak of the orbit (/shooting/orbit/U, one period)."""
     if not os.path.isfile(h5):
         fail(f"squeal did not write '{h5}' ({' '.join(cmd)})")
-    with h5py.File(h5, "r") as f:
-        if "shooting" not in f:
+    with Results(h5) as r:
+        if r.shooting is None:
             fail(f"'{h5}' has no /shooting group ({' '.join(cmd)})")
-        g = f["shooting"]
-        for name in ("period", "orbit/U"):
-            if name not in g:
-                fail(f"'{h5}': /shooting/{name} is missing")
-        converged = int(g.attrs.get("converged", 0))
-        reason = g.attrs.get("reason", b"")
-        reason = reason.decode() if isinstance(reason, bytes) else str(reason)
-        period = float(g["period"][()])
-        U = np.asarray(g["orbit/U"][()], dtype=float)
-        its = int(g["iterations"][()]) if "iterations" in g else -1
-        ndof = int(f["model"].attrs["dofs"]) if "model" in f and "dofs" in f["model"].attrs else 3
+        g = r.require("shooting", ("period", "orbit/U"))
+        converged = g.converged
+        reason = str(g.attrs.get("reason", ""))
+        period = g.period
+        U = g.array("orbit/U")
+        its = g.iterations
+        ndof = int(r.model.get("dofs", 3))
     if U.ndim != 2:
         fail(f"'{h5}': /shooting/orbit/U has shape {U.shape}")
     if U.shape[1] != ndof and U.shape[0] == ndof:  # stored DOF-major: one row per DOF
@@ -587,21 +569,6 @@ def plot(rows, steps, out_png, info):
     save_png(fig, out_png)
 
 
-def save_png(fig, out):
-    """Save as PNG, quantised to a 256-colour palette when Pillow is there (a third of the size)."""
-    try:
-        from PIL import Image
-    except ImportError:  # pragma: no cover
-        fig.savefig(out)
-        return
-    import io
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    buf.seek(0)
-    with Image.open(buf) as im:
-        im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(out, optimize=True)
-
-
 # --------------------------------------------------------------------------------------------
 
 def fmt_num(x, spec):
@@ -618,9 +585,6 @@ def load_average():
 
 def cost_study(squeal, scenes, repeat, keep, lengths, tol=1e-4):
     """Shooting + Floquet against the shortest transient that settles to its period to `tol`."""
-    sys.path.insert(0, HERE)
-    from squeal_results import analysis_group  # noqa: E402
-
     def stages(log, names):
         lv = read_log_view(log)
         return sum(lv[n] for n in names) if all(n in lv for n in names) else float("nan")
@@ -635,8 +599,8 @@ def cost_study(squeal, scenes, repeat, keep, lengths, tol=1e-4):
         for case, _, clabel in CASES:
             shoot = [squeal, "-scene", scenes[case], "-analyses", "shooting", "-shoot_floquet", "1", "-output", h5]
             _, p = run_timed(shoot, h5)
-            with analysis_group(h5, "shooting", ("period",), "shooting") as (_, g):
-                T_s = float(g["period"][()])
+            with open_results(h5) as r:
+                T_s = r.require("shooting", ("period",)).period
             m = RE_SHOOT_PARTS.search(p.stdout)
             if not m:
                 fail(f"no 'period integrations (Newton n, Floquet m)' in the output of {' '.join(shoot)}")
@@ -646,8 +610,8 @@ def cost_study(squeal, scenes, repeat, keep, lengths, tol=1e-4):
             for L in lengths:
                 cmd = transient_cmd(squeal, scenes[case], L, 1000, REF_TOL, keep, h5)
                 _, p = run_timed(cmd, h5)
-                with analysis_group(h5, "transient", (), "transient") as (_, g):
-                    T_t = float(g.attrs.get("period", float("nan")))
+                with open_results(h5) as r:
+                    T_t = float(r.require("transient").attrs.get("period", float("nan")))
                 errs.append((L, abs(T_t - T_s) / T_s))
                 ok = [e <= tol for _, e in errs[-3:]]
                 if len(ok) == 3 and all(ok):
@@ -687,8 +651,8 @@ def cost_study(squeal, scenes, repeat, keep, lengths, tol=1e-4):
     return out
 
 
-def main():
-    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+def main(argv=None, prog=PROG):
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--squeal", required=True, help="path of the squeal executable")
     ap.add_argument("--out-dir", default=".", help="directory of work_precision.png (and of the CSV unless --csv)")
@@ -715,7 +679,7 @@ def main():
                     help="only shooting + Floquet against the shortest transient that settles to its period (see above)")
     ap.add_argument("--cost-lengths", default="10:60",
                     help="--cost: transient lengths tried, in periods of the linear mode, FIRST:LAST by 1 (default 10:60)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
 
     squeal = os.path.abspath(args.squeal)
     if not os.path.isfile(squeal):

@@ -12,7 +12,8 @@ import os
 import subprocess
 import sys
 
-import h5py
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 d = sys.argv[1]
 reduced = "--reduced" in sys.argv[:sys.argv.index("--")]
@@ -39,20 +40,20 @@ if rc == 0:
             inset = line.upper().replace(" ", "").startswith("*NSET,NSET=PAD_FACE")
         elif inset:
             pad.update(int(t) for t in line.replace(",", " ").split())
-    with h5py.File(out, "r") as f:
-        m = f["model"].attrs
-        rows = f["mesh/dof"][()]
+    with Results(out) as r:
+        m = r.model
+        rows = r.mesh["dof"]
         if reduced:
             # Craig-Bampton keeps the pad- and disc-face nodes' DOFs physical, and only those.
-            check(int(f["mesh"].attrs["partial"]) == 1, "/mesh is partial")
+            check(int(r.mesh.attrs["partial"]) == 1, "/mesh is partial")
             check(int((rows >= 0).sum()) == 6 * len(pad), f"{int((rows >= 0).sum())} mesh rows = 2 x 3 x PAD_FACE nodes")
             check(int(rows.max()) < int(m["dofs"]), "mesh rows inside the reduced model")
         else:
             check(int(m["dofs"]) == ndof, f"model DOFs {int(m['dofs'])} = rows of brake.dof {ndof}")
             check(int((rows >= 0).sum()) == ndof, "every row of brake.dof on the mesh")
         check(int(m["contact_points"]) == len(pad), f"contact points {int(m['contact_points'])} = PAD_FACE nodes {len(pad)}")
-        unstable = f["stability/unstable"][()]
-        freq = f["stability/frequency"][()]
+        unstable = r.stability.unstable
+        freq = r.stability.frequency
         check(len(unstable) >= 1, f"{len(unstable)} unstable mode(s)")
         check(all(0 < freq[i] < 1e5 for i in unstable), "unstable frequencies finite, in (0, 100 kHz)")
 sys.exit(1 if fails else 0)

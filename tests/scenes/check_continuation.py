@@ -14,11 +14,12 @@ import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
 
-import check_results_io
-from check_results_io import ok, signal_after, status
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+import check_results_io  # noqa: E402
+from check_results_io import ok, signal_after  # noqa: E402
+from squeal.results import Results  # noqa: E402
 
 
 def parse(argv):
@@ -37,27 +38,23 @@ def parse(argv):
     return opts[0], args, cmd
 
 
-def attr(g, name):
-    v = g.attrs.get(name)
-    return v.decode() if isinstance(v, bytes) else v
-
-
 def interrupt(args, cmd):
     out = args["--output"]
     k = int(args.get("--after-points", "3"))
     name = signal_after(cmd, out, r"^cont [+-]\s*%d:" % k, args.get("--signal", "INT"))
     if not ok(os.path.exists(out), f"{out} exists"):
         return
-    with h5py.File(out, "r") as f:
-        ok(status(f).startswith("interrupted (" + name), f"root status '{status(f)}'")
-        if not ok("continuation/param" in f, "has /continuation/param"):
+    with Results(out) as r:
+        ok(r.status.startswith("interrupted (" + name), f"root status '{r.status}'")
+        if not ok("continuation/param" in r, "has /continuation/param"):
             return
-        lam = np.asarray(f["continuation/param"][()])
-        T = np.asarray(f["continuation/period"][()])
+        c = r.continuation
+        lam = np.asarray(c["param"])
+        T = np.asarray(c["period"])
         ok(lam.size >= k + 1, f"{lam.size} points kept (>= {k + 1})")
         ok(np.all(np.isfinite(T)) and np.all(T > 0), "periods finite and positive")
-        ok(int(f["continuation"].attrs["interrupted"]) == 1, "/continuation interrupted = 1")
-        ok(name in attr(f["continuation"], "leg_end"), f"leg_end '{attr(f['continuation'], 'leg_end')}' names {name}")
+        ok(int(c.attrs["interrupted"]) == 1, "/continuation interrupted = 1")
+        ok(name in c.attrs.get("leg_end"), f"leg_end '{c.attrs.get('leg_end')}' names {name}")
 
 
 def branch(args, cmd):
@@ -71,16 +68,16 @@ def branch(args, cmd):
     if not ok(p.returncode == 0, f"exit code {p.returncode}"):
         return
     lo, hi = float(args["--min"]), float(args["--max"])
-    with h5py.File(out, "r") as f:
-        g = f["continuation"]
-        ok(attr(g, "parameter") == args["--param"], f"parameter '{attr(g, 'parameter')}'")
-        lam = np.asarray(g["param"][()])
-        T = np.asarray(g["period"][()])
+    with Results(out) as r:
+        g = r.continuation
+        ok(g.attrs.get("parameter") == args["--param"], f"parameter '{g.attrs.get('parameter')}'")
+        lam = np.asarray(g["param"])
+        T = np.asarray(g["period"])
         ok(lam.min() >= lo - 1e-12 and lam.max() <= hi + 1e-12, f"points in [{lo}, {hi}]: [{lam.min()}, {lam.max()}]")
         ok(abs(lam.min() - lo) < 1e-12 and abs(lam.max() - hi) < 1e-12, "both ends of the range reached")
         ok(np.all(np.isfinite(T)) and np.all(T > 0), "periods finite and positive")
-        types = attr(g["events"], "types").split(",") if "events" in g else []
-        ep = np.asarray(g["events/param"][()]) if "events/param" in g else np.array([])
+        types = g["events"].attrs.get("types").split(",") if "events" in g else []
+        ep = np.asarray(g["events/param"]) if "events/param" in g else np.array([])
         for e in args["events"]:
             t, _, rng = e.partition("@")
             idx = [i for i, s in enumerate(types) if s == t]

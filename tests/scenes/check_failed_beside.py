@@ -13,7 +13,8 @@ import os
 import subprocess
 import sys
 
-import h5py
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results, status_of  # noqa: E402
 
 squeal, scene, out = sys.argv[1:4]
 failed = out[:-3] + ".failed.h5"
@@ -30,12 +31,6 @@ def run(*extra):
     return p
 
 
-def status(f):
-    with h5py.File(f, "r") as h:
-        s = h.attrs["status"]
-        return s.decode() if isinstance(s, bytes) else str(s)
-
-
 def digest(f):
     return hashlib.sha256(open(f, "rb").read()).hexdigest()
 
@@ -43,21 +38,21 @@ def digest(f):
 bad = ["-analyses", "stability,shooting", "-shoot_snes_max_it", "1"]
 ok = True
 p = run("-analyses", "stability")
-ok &= p.returncode == 0 and status(out) == "complete"
+ok &= p.returncode == 0 and status_of(out) == "complete"
 before = digest(out)
 
 p = run(*bad)
 ok &= p.returncode != 0
 ok &= digest(out) == before
-ok &= os.path.exists(failed) and status(failed).startswith("failed")
+ok &= os.path.exists(failed) and status_of(failed).startswith("failed")
 ok &= failed in p.stderr and "are kept" in p.stderr
-with h5py.File(failed, "r") as h:
-    ok &= "stability" in h  # the partial results are there
+with Results(failed) as r:
+    ok &= "stability" in r  # the partial results are there
 
 os.remove(out)
 os.remove(failed)
 p = run(*bad)
-ok &= p.returncode != 0 and status(out).startswith("failed") and not os.path.exists(failed)
+ok &= p.returncode != 0 and status_of(out).startswith("failed") and not os.path.exists(failed)
 leftovers = [f for f in os.listdir(os.path.dirname(os.path.abspath(out))) if ".part-" in f and os.path.basename(out) in f]
 ok &= not leftovers
 print("PASS" if ok else "FAIL")

@@ -3,11 +3,15 @@
 file holds a NaN, and optional attribute values:
   check_no_nan.py --output F [--attr /group name value]... -- cmd..."""
 import argparse
+import os
 import subprocess
 import sys
 
 import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results, decode  # noqa: E402
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--output", required=True)
@@ -36,14 +40,14 @@ def visit(name, obj):
         bad.append(f"dataset {name}")
 
 
-with h5py.File(a.output, "r") as f:
+with Results(a.output) as r:
+    f = r.h5
     for k, v in f.attrs.items():
         if numeric_nan(v):
             bad.append(f"attribute /:{k}")
     f.visititems(visit)
     for obj, name, value in a.attr:
-        got = f[obj].attrs[name]
-        got = got.decode() if isinstance(got, bytes) else got
+        got = decode(f[obj].attrs[name])
         if str(got) != value and not (np.asarray(got).dtype.kind in "iuf" and float(got) == float(value)):
             bad.append(f"{obj}:{name} = {got!r}, expected {value}")
 if bad:

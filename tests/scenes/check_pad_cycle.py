@@ -17,11 +17,14 @@ Checks:
   - the Floquet multipliers say the cycle is stable (it attracts the transient) and the trivial
     multiplier is within 1e-2 of 1."""
 import argparse
+import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 
 def crossings(t, y, v, level, hyst):
@@ -71,20 +74,20 @@ def main():
         if r.returncode != 0:
             sys.exit(f"check_pad_cycle: squeal exited with {r.returncode}")
     fails = []
-    with h5py.File(a.shooting or a.output, "r") as fs:
-        s = fs["shooting"]
-        converged = int(s.attrs["converged"])
-        its = int(s["iterations"][()])
-        T_s = float(s["period"][()])
-        Uo = s["orbit/U"][()]
-        L = s["floquet"][()]
-        trivial = int(s.attrs["trivial_multiplier_index"])
-        q0 = float(fs["energy"].attrs["q0"])
-    with h5py.File(a.output, "r") as f:
-        t = f["transient/t"][()]
-        U = f["transient/U"][()]
-        V = f["transient/V"][()]
-        Ue = f["equilibrium/U"][()]
+    with Results(a.shooting or a.output) as rs:
+        s = rs.shooting
+        converged = s.converged
+        its = s.iterations
+        T_s = s.period
+        Uo = s["orbit/U"]
+        L = s.floquet
+        trivial = s.trivial
+        q0 = float(rs.energy.attrs["q0"])
+    with Results(a.output) as r:
+        t = r.transient["t"]
+        U = r.transient["U"]
+        V = r.transient["V"]
+        Ue = r.equilibrium["U"]
     if not converged:
         fails.append("shooting did not converge")
     if its > a.max_iterations:

@@ -15,7 +15,6 @@
       "not a squeal results file", and leave F byte for byte unchanged.
 """
 import glob
-import math
 import os
 import re
 import signal
@@ -23,8 +22,10 @@ import subprocess
 import sys
 import time
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 failures = 0
 
@@ -41,19 +42,6 @@ def no_temporaries(out):
     d, b = os.path.split(os.path.abspath(out))
     left = glob.glob(os.path.join(d, "." + b + ".part-*"))
     ok(not left, f"no temporary file left beside {b} ({left})")
-
-
-def unstable_period(f):
-    ev = np.asarray(f["stability/eigenvalues"][()])
-    un = np.asarray(f["stability/unstable"][()]).ravel()
-    if un.size == 0:
-        return None
-    return 2 * math.pi / ev[int(un[0]), 1]
-
-
-def status(f):
-    s = f.attrs.get("status", b"")
-    return s.decode() if isinstance(s, bytes) else str(s)
 
 
 def signal_after(cmd, out, pattern, which="INT"):
@@ -91,15 +79,15 @@ def interrupt(args, cmd):
     no_temporaries(out)
     if not ok(os.path.exists(out), f"{out} exists"):
         return
-    with h5py.File(out, "r") as f:
-        ok(status(f).startswith("interrupted (" + name), f"root status '{status(f)}'")
-        T = unstable_period(f)
+    with Results(out) as r:
+        ok(r.status.startswith("interrupted (" + name), f"root status '{r.status}'")
+        T = r.stability.unstable_period()
         ref = float(args.get("--period", "0.0109"))
         ok(T is not None and abs(T - ref) / ref < 5e-3, f"stability table: unstable period {T} ~ {ref}")
-        if ok("transient/t" in f, "has /transient/t"):
-            t = np.asarray(f["transient/t"][()])
-            U = np.asarray(f["transient/U"][()])
-            ok(int(f["transient"].attrs["complete"]) == 0, "/transient complete = 0")
+        if ok("transient/t" in r, "has /transient/t"):
+            t = np.asarray(r.transient["t"])
+            U = np.asarray(r.transient["U"])
+            ok(int(r.transient.attrs["complete"]) == 0, "/transient complete = 0")
             ok(t.size >= 2 and U.shape[0] == t.size, f"{t.size} records, U {U.shape}")
             dt = np.diff(t)
             ok(t.size >= 2 and np.all(dt > 0) and np.ptp(dt) <= 1e-9 * dt.max(), "time increases at a constant step")
@@ -121,15 +109,15 @@ def concurrent(args, cmds):
     no_temporaries(out)
     mu_a = float(cmds[0][cmds[0].index("-contact_mu") + 1])
     mu_b = float(cmds[1][cmds[1].index("-contact_mu") + 1])
-    with h5py.File(out, "r") as f:
-        ok(status(f) == "complete", f"status '{status(f)}'")
-        mu = float(f["model"].attrs["mu"])
+    with Results(out) as res:
+        ok(res.status == "complete", f"status '{res.status}'")
+        mu = float(res.model["mu"])
         ok(mu in (mu_a, mu_b), f"/model mu = {mu} is one run's ({mu_a} or {mu_b})")
-        ok(float(f["equilibrium"].attrs["mu"]) == mu, "/equilibrium mu = /model mu")
-        r = np.asarray(f["equilibrium/r"][()])
+        ok(float(res.equilibrium.attrs["mu"]) == mu, "/equilibrium mu = /model mu")
+        r = np.asarray(res.equilibrium["r"])
         closed = r[:, 2] > 0
         ok(closed.any() and np.allclose(r[closed, 0], mu * r[closed, 2], rtol=1e-12), "r_t = mu r_n at the closed points")
-        ok(("transient" in f) == (mu == mu_a), "/transient present exactly when the file is run A's")
+        ok(("transient" in res) == (mu == mu_a), "/transient present exactly when the file is run A's")
         print(f"the file is run {'A' if mu == mu_a else 'B'}'s")
 
 

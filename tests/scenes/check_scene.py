@@ -22,8 +22,10 @@ import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 
 class Checker:
@@ -41,13 +43,13 @@ def rel_err(x, ref):
     return abs(x - ref) / abs(ref)
 
 
-def unstable_period(f, chk, label):
+def unstable_period(r, chk, label):
     """Period 2*pi/omega and sigma of the most unstable mode of an open results file."""
-    if not chk.ok("stability/eigenvalues" in f and "stability/unstable" in f,
+    if not chk.ok("stability/eigenvalues" in r and "stability/unstable" in r,
                   f"{label}: has /stability/eigenvalues and /stability/unstable"):
         return None
-    ev = np.asarray(f["stability/eigenvalues"][()], dtype=float)
-    un = np.asarray(f["stability/unstable"][()]).ravel()
+    ev = r.stability.eigenvalues
+    un = r.stability.unstable
     if not chk.ok(ev.ndim == 2 and ev.shape[1] == 2,
                   f"{label}: /stability/eigenvalues is k x 2 (shape {ev.shape})"):
         return None
@@ -103,11 +105,11 @@ def main():
     if not chk.ok(os.path.isfile(a.output), f"results file {a.output} written"):
         sys.exit(1)
 
-    with h5py.File(a.output, "r") as f:
+    with Results(a.output) as r:
         if a.period is not None or a.n_unstable is not None or a.same_period_as:
-            T = unstable_period(f, chk, "result")
+            T = unstable_period(r, chk, "result")
             if a.n_unstable is not None:
-                n = np.asarray(f["stability/unstable"][()]).size if "stability/unstable" in f else -1
+                n = r.stability.unstable.size if "stability/unstable" in r else -1
                 chk.ok(n == a.n_unstable, f"number of unstable modes {n} == {a.n_unstable}")
             if T is not None and a.period is not None:
                 e = rel_err(T, a.period)
@@ -115,7 +117,7 @@ def main():
                        f"unstable period {T:.7g} s vs reference {a.period:.7g} s: "
                        f"rel. error {e:.2e} <= {a.period_rtol:g}")
             if T is not None and a.same_period_as:
-                with h5py.File(a.same_period_as, "r") as g:
+                with Results(a.same_period_as) as g:
                     T0 = unstable_period(g, chk, os.path.basename(a.same_period_as))
                 if T0 is not None:
                     e = rel_err(T, T0)
@@ -124,13 +126,12 @@ def main():
                            f"rel. difference {e:.2e} <= {a.same_rtol:g}")
 
         if a.critical_mu is not None or a.sweep_v is not None:
-            if chk.ok("sweep" in f, "has /sweep"):
-                sw = f["sweep"]
-                V = np.asarray(sw["V"][()], dtype=float).ravel() if "V" in sw else None
+            if chk.ok("sweep" in r, "has /sweep"):
+                sw = r.sweep
+                V = sw.V
                 chk.ok(V is not None, "has /sweep/V")
-                crit = sw.attrs.get("critical_mu")
+                crit = sw.critical_mu
                 if chk.ok(crit is not None, "/sweep has attribute critical_mu"):
-                    crit = np.atleast_1d(np.asarray(crit, dtype=float))
                     if V is not None:
                         chk.ok(crit.size == V.size,
                                f"critical_mu has one entry per V ({crit.size} vs {V.size})")
@@ -144,8 +145,8 @@ def main():
                     chk.ok(V.size == len(a.sweep_v) and np.allclose(V, a.sweep_v, rtol=1e-12, atol=0),
                            f"/sweep/V = {V.tolist()} == {a.sweep_v}")
                 if "eigenvalues" in sw and "mu" in sw and V is not None:
-                    shp = sw["eigenvalues"].shape
-                    nmu = sw["mu"].shape[0]
+                    shp = sw.dataset("eigenvalues").shape
+                    nmu = sw.dataset("mu").shape[0]
                     chk.ok(len(shp) == 4 and shp[0] == V.size and shp[1] == nmu and shp[3] == 2,
                            f"/sweep/eigenvalues shape {shp} is [V={V.size}][mu={nmu}][slot][2]")
 

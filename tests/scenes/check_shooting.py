@@ -4,11 +4,14 @@ iteration budget, the trivial Floquet multiplier near 1, the regime of the cycle
 a second command (after a second --) and --other-output, also runs that command and requires the
 same period and Z0 (e.g. serial against mpiexec -n 2); --same-floquet also the same multipliers."""
 import argparse
+import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 
 def run(cmd):
@@ -20,11 +23,10 @@ def run(cmd):
 
 
 def read(path):
-    with h5py.File(path, "r") as f:
-        g = f["/shooting"]
-        return dict(converged=int(g.attrs["converged"]), period=float(g["period"][()]), Z0=g["Z0"][()],
-                    iterations=int(g["iterations"][()]), floquet=g["floquet"][()],
-                    trivial=int(g.attrs["trivial_multiplier_index"]), status=f["/shooting/orbit/U"][()])
+    with Results(path) as r:
+        g = r.shooting
+        return dict(converged=g.converged, period=g.period, Z0=g["Z0"], iterations=g.iterations,
+                    floquet=g.floquet, trivial=g.trivial, status=g["orbit/U"])
 
 
 def main():

@@ -5,11 +5,14 @@ record is finite, and, for a cycle squeal calls settled, its period against an i
 the lag after which the displacements of the last period return to themselves (least squares
 over its records, displacements between records by their cubic Hermite interpolant)."""
 import argparse
+import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 
 def hermite(t, U, V, tq):
@@ -62,10 +65,10 @@ def main():
     if run.returncode != 0:
         sys.exit(f"check_transient: squeal exited with {run.returncode}")
     fails = []
-    with h5py.File(a.output, "r") as f:
-        g = f["/transient"]
-        status = g["status"][()]
-        U, V, E = g["U"][()], g["V"][()], g["energy"][()]
+    with Results(a.output) as r:
+        g = r.transient
+        status = g["status"]
+        U, V, E = g["U"], g["V"], g["energy"]
         if not g.attrs["complete"]:
             fails.append("run incomplete")
         if not (np.isfinite(U).all() and np.isfinite(V).all()):
@@ -84,10 +87,9 @@ def main():
         if not (0.009 < period < 0.0125):
             fails.append(f"cycle period {period} s far from the linear 0.0107-0.0109 s")
         trend = g.attrs["trend"]
-        trend = trend.decode() if isinstance(trend, bytes) else str(trend)
         ret = ""
         if trend == "settled":
-            T_ret = return_period(g["t"][()], U, V, period)
+            T_ret = return_period(g["t"], U, V, period)
             ret = f", state return lag {T_ret:.10e} s ({period / T_ret - 1:+.1e})"
             if abs(period / T_ret - 1) > a.period_tol:
                 fails.append(f"settled period {period:.10e} s differs from the state's return lag {T_ret:.10e} s by more than {a.period_tol:.0e}")

@@ -8,11 +8,14 @@ For PREFIX_mode0.xdmf: the points are /mesh/x, the cells /mesh/cells, the time s
 requested phases, and at each phase theta the field u at every node equals Re(phi e^{i theta})
 read straight from /stability/modes at the node's rows /mesh/dof (1e-12); nodes without rows are 0.
 """
+import os
 import sys
 
-import h5py
 import meshio
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import Results  # noqa: E402
 
 res, prefix = sys.argv[1], sys.argv[2]
 fails = 0
@@ -24,11 +27,12 @@ def check(cond, msg):
     fails += not cond
 
 
-with h5py.File(res, "r") as f:
-    x, dof = f["mesh/x"][()], f["mesh/dof"][()]
-    m = f["stability/unstable"][0]
-    phi = f["stability/modes/re"][:, m] + 1j * f["stability/modes/im"][:, m]
-    ncells = sum(f["mesh/cells"][k].shape[0] for k in f["mesh/cells"])
+with Results(res) as r:
+    x, dof = r.mesh["x"], r.mesh["dof"]
+    m = r.stability.unstable[0]
+    phi = r.stability.mode(m)
+    cells = r.mesh["cells"]
+    ncells = sum(cells.dataset(k).shape[0] for k in cells.keys())
 
 r = meshio.xdmf.TimeSeriesReader(prefix + "_mode0.xdmf")
 points, cells = r.read_points_cells()
