@@ -275,6 +275,14 @@ PetscErrorCode RunAnalyses(MPI_Comm comm, Model &model, Components &k, const Req
     } else if (res.unstable.size() > 1)
       PetscCall(PetscPrintf(comm, "  %zu other unstable mode(s) not estimated (-energy_all_modes to estimate each, -energy_mode to choose)\n",
                             res.unstable.size() - 1));
+    // No unstable mode in the band: no cycle to shoot for, and no branch to start from.
+    if (req.shooting && est.mode < 0)
+      PetscCall(PetscPrintf(comm, "shooting skipped: no unstable mode in the band at mu = %s, V = %s m/s, so no limit cycle to compute\n",
+                            Num(model.contacts.mu).c_str(), Num(model.contacts.V).c_str()));
+    PetscCheck(!(req.continuation && est.mode < 0), comm, kErrInput,
+               "continuation: no limit cycle to start from: the sliding equilibrium has no unstable mode in the band at mu = %s, "
+               "V = %s m/s; start the scene at a mu (or V) where it is unstable (the sweep, -analyses sweep, gives the critical mu)",
+               Num(model.contacts.mu).c_str(), Num(model.contacts.V).c_str());
     if (req.shooting && est.mode >= 0) {
       PetscCheck(est.found, comm, PETSC_ERR_NOT_CONVERGED,
                  "shooting: the energy estimate found no amplitude where damping and reaction powers balance up to %g q_sep; no initial guess (raise -energy_q_max_factor or -energy_extend)",

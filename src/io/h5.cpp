@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -118,6 +119,10 @@ std::string H5Writer::FailedSibling(const std::string &path)
       break;
     }
   }
+  // Within NAME_MAX (255 bytes) for the file name: a long stem is cut.
+  const size_t dir = stem.find_last_of('/') == std::string::npos ? 0 : stem.find_last_of('/') + 1;
+  const size_t max = 255 - std::strlen(".failed.h5");
+  if (stem.size() - dir > max) stem.resize(dir + max);
   return stem + ".failed.h5";
 }
 
@@ -129,6 +134,13 @@ PetscErrorCode H5Writer::Open(MPI_Comm comm, const char *path)
   PetscCallMPI(MPI_Comm_rank(comm, &rank_));
   path_ = path ? path : "";
   tmp_  = DirName(path_) + "/." + BaseName(path_) + ".part-" + std::to_string((long long)getpid());
+  // A name near NAME_MAX (255 bytes) leaves no room for the temporary's dot and suffix: a short
+  // temporary name then, still beside the target (rename(2) must stay within one file system).
+  if (BaseName(tmp_).size() > 255) {
+    char h[32];
+    std::snprintf(h, sizeof h, "%016zx", std::hash<std::string>{}(BaseName(path_)));
+    tmp_ = DirName(path_) + "/.squeal-" + h + ".part-" + std::to_string((long long)getpid());
+  }
   err_.clear();
   status_.clear();
   aside_path_.clear();

@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <ctime>
 #include <numeric>
@@ -608,6 +609,15 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
                           (PetscInt)keep.size(), prefix_.c_str(), (double)fmax_, prefix_.c_str()));
   const PetscInt m  = (PetscInt)keep.size();
   const PetscInt n2 = nB + m;
+  if (m == 0 && nmodes_ < 0 && nI > 0) {
+    char f[32]; // PETSc's %g would print "10."
+    std::snprintf(f, sizeof f, "%g", (double)fmax_);
+    PetscCall(PetscPrintf(comm,
+                          "reduction: warning: no fixed-interface mode lies below -%sfmax = %s Hz: the reduction is static (Guyan, "
+                          "interface DOFs only) and misses every interior resonance; raise -%sfmax, or give -%snmodes 0 to ask for "
+                          "a static reduction\n",
+                          prefix_.c_str(), f, prefix_.c_str(), prefix_.c_str()));
+  }
   info_.n_modes     = m;
   for (PetscInt k : keep) info_.freq.push_back(std::sqrt(PetscMax(lam[k], 0.0)) / (2 * PETSC_PI));
 
