@@ -5,11 +5,7 @@
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
-#include <random>
-#include <functional>
 #include <cmath>
 #include <cstdio>
 
@@ -90,58 +86,6 @@ struct ShootingCallbacks {
       PetscCall(VecScale(y, s->defl_m_));
       PetscCall(VecAXPY(y, a + b, s->deflF_));
     }
-    PetscFunctionReturn(0);
-  }
-  // y = M v by forward differences of the flow, displacement and velocity parts of v perturbed
-  // separately with steps scaled by ||U0|| and ||dU0||, as the dense columns are: one scale for
-  // both would shift impacts by far more than the displacements allow.
-  static PetscErrorCode MonodromyMult(Mat A, Vec v, Vec y)
-  {
-    Shooting *s;
-    PetscFunctionBeginUser;
-    PetscCall(MatShellGetContext(A, &s));
-    if (s->mono_exact_) {
-      // The exact tangent along the stored flow from Z0: no difference noise, no extra factorisation.
-      const PetscInt     N = s->N_;
-      Eigen::MatrixXd    dZ0(2 * N, 1), dZ1;
-      Eigen::VectorXd    part(N), out(2 * N + 1);
-      Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(1);
-      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
-      PetscCall(s->Full(s->wU_, part));
-      dZ0.col(0).head(N) = part;
-      PetscCall(s->Full(s->wdU_, part));
-      dZ0.col(0).tail(N) = part;
-      PetscCall(s->TangentFlow(s->mono_x_, dZ0, dT, dZ1));
-      out.head(2 * N) = dZ1.col(0);
-      out[2 * N]      = 0;
-      PetscCall(s->FromNatural(out, y));
-      PetscFunctionReturn(0);
-    }
-    PetscCall(VecZeroEntries(s->aU_));
-    PetscCall(VecZeroEntries(s->adU_));
-    const PetscInt K = (PetscInt)s->mono_start_.size();
-    for (PetscInt k = 0; k < K; ++k) {
-      const auto &st = s->mono_start_[k];
-      const auto &bs = s->mono_base_[k];
-      for (int part = 0; part < 2; ++part) {
-        PetscReal nv, nz;
-        PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
-        Vec moved = part == 0 ? s->wU_ : s->wdU_, fixed = part == 0 ? s->wdU_ : s->wU_;
-        PetscCall(VecNorm(moved, NORM_2, &nv));
-        if (nv == 0) continue;
-        PetscCall(VecNorm(part == 0 ? s->mono_U0_ : s->mono_dU0_, NORM_2, &nz));
-        const PetscReal eps = s->fd_step * (nz > 0 ? nz : 1.0) / nv;
-        PetscCall(VecZeroEntries(fixed));
-        PetscCall(VecAYPX(s->wU_, eps, st.first));
-        PetscCall(VecAYPX(s->wdU_, eps, st.second));
-        PetscCall(s->Flow(s->wU_, s->wdU_, s->mono_T_, s->U1_, s->dU1_));
-        PetscCall(VecAXPY(s->U1_, -1.0, bs.first));
-        PetscCall(VecAXPY(s->dU1_, -1.0, bs.second));
-        PetscCall(VecAXPY(s->aU_, s->phase_w_[k] / eps, s->U1_));
-        PetscCall(VecAXPY(s->adU_, s->phase_w_[k] / eps, s->dU1_));
-      }
-    }
-    PetscCall(s->Pack(s->aU_, s->adU_, 0.0, y));
     PetscFunctionReturn(0);
   }
   // GMRES on products: PETSc's test, and once ||H|| / ||Z0|| < eps1 the solve only has to tell
@@ -412,8 +356,7 @@ PetscErrorCode Shooting::SetFromOptions()
 PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti)
 {
   PetscFunctionBeginUser;
-  // A new model may have another size: the one-step shift is rebuilt on first use.
-  shiftU_.reset(), shiftdU_.reset();
+  floquet_.Reset();
   if (!snes_) PetscCall(SetFromOptions());
   model_ = &model;
   ti_    = &ti;
@@ -446,6 +389,18 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   PetscCall(MatCreateShell(comm_, nl, nl, n, n, this, J_.out()));
   PetscCall(MatShellSetOperation(J_, MATOP_MULT, (void (*)(void))ShootingCallbacks::Mult));
   T_setup_ = -1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetUpAt(PetscReal T)
+{
+  PetscFunctionBeginUser;
+  // A new period means a new step size: (S1)-(S3) again.
+  if (T != T_setup_) {
+    PetscCall(ti_->SetUp(*model_, T / steps));
+    T_setup_ = T;
+    ++setups_;
+  }
   PetscFunctionReturn(0);
 }
 
@@ -507,12 +462,7 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   std::vector<int> prev, cur;
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(ev_flow, 0, 0, 0, 0));
-  // A new period means a new step size: (S1)-(S3) again.
-  if (T != T_setup_) {
-    PetscCall(ti_->SetUp(*model_, T / steps));
-    T_setup_ = T;
-    ++setups_;
-  }
+  PetscCall(SetUpAt(T));
   PetscCall(VecCopy(U, U1));
   PetscCall(VecCopy(dU, dU1));
   const PetscInt nc = model_->contacts.Size();
@@ -550,8 +500,7 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
       std::swap(prev, cur);
     }
   }
-  if (run < steps) partial_steps_ += run;
-  else ++evaluations_;
+  CountSteps(run);
   if (r_end) *r_end = r;
   PetscCall(PetscLogEventEnd(ev_flow, 0, 0, 0, 0));
   PetscFunctionReturn(0);
@@ -895,433 +844,6 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
-{
-  PetscInt  N, lo, hi;
-  PetscReal nU, ndU;
-  PetscMPIInt rank;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
-  PetscCall(VecGetSize(U0, &N));
-  PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
-  PetscCall(VecNorm(U0, NORM_2, &nU));
-  PetscCall(VecNorm(dU0, NORM_2, &ndU));
-  VecH bU, bdU;
-  PetscCall(VecDuplicate(U0, bU.out()));
-  PetscCall(VecDuplicate(U0, bdU.out()));
-  Mono.setZero(2 * N, 2 * N);
-  AllGather gather;
-  PetscCall(gather.SetUp(U0));
-  Eigen::VectorXd base(2 * N), col(2 * N);
-  PetscCall(SetUpPhases(U0, dU0, T, true));
-  for (size_t k = 0; k < phase_s_.size(); ++k) {
-    PetscCall(PhaseStart(U0, dU0, phase_s_[k], bU, bdU));
-    PetscCall(Flow(bU, bdU, T, U1_, dU1_));
-    PetscCall(gather(U1_, base.head(N)));
-    PetscCall(gather(dU1_, base.tail(N)));
-    for (PetscInt j = 0; j < 2 * N; ++j) {
-      const bool      disp  = j < N;
-      const PetscInt  i     = disp ? j : j - N;
-      // Forward (+delta) steps: a closed point pushed into the surface is projected back at once.
-      const PetscReal delta = fd_step * (disp ? (nU > 0 ? nU : 1.0) : (ndU > 0 ? ndU : 1.0));
-      PetscCall(VecCopy(bU, U_));
-      PetscCall(VecCopy(bdU, dU_));
-      if (i >= lo && i < hi) PetscCall(VecSetValue(disp ? U_ : dU_, i, delta, ADD_VALUES));
-      PetscCall(VecAssemblyBegin(disp ? U_ : dU_));
-      PetscCall(VecAssemblyEnd(disp ? U_ : dU_));
-      PetscCall(Flow(U_, dU_, T, U1_, dU1_));
-      PetscCall(gather(U1_, col.head(N)));
-      PetscCall(gather(dU1_, col.tail(N)));
-      Mono.col(j) += phase_w_[k] * (col - base) / delta;
-    }
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
-{
-  PetscInt        N;
-  Eigen::VectorXd r, vloc;
-  StepInfo        info;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetSize(U0, &N));
-  PetscCheck(ti_->Dense(), comm_, PETSC_ERR_SUP, "the exact monodromy needs the dense theta back end (N <= -theta_dense_max)");
-  PetscCall(SetUpPhases(U0, dU0, T, true));
-  Mono.setZero(2 * N, 2 * N);
-  Eigen::MatrixXd dU, ddU;
-  for (size_t k = 0; k < phase_s_.size(); ++k) {
-    PetscCall(PhaseStart(U0, dU0, phase_s_[k], U1_, dU1_));
-    r = r_init_;
-    dU.setZero(N, 2 * N), ddU.setZero(N, 2 * N);
-    dU.leftCols(N).setIdentity();
-    ddU.rightCols(N).setIdentity();
-    for (PetscInt i = 0; i < steps; ++i) {
-      PetscCall(ti_->Step(U1_, dU1_, r, &info));
-      if (r.size()) PetscCall(ti_->Local(dU1_, vloc));
-      PetscCall(ti_->StepTangent(r, vloc, dU, ddU));
-    }
-    Mono.topRows(N) += phase_w_[k] * dU;
-    Mono.bottomRows(N) += phase_w_[k] * ddU;
-    ++evaluations_;
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T)
-{
-  Eigen::VectorXd r = r_init_;
-  StepInfo        info;
-  PetscFunctionBeginUser;
-  if (T != T_setup_) {
-    PetscCall(ti_->SetUp(*model_, T / steps));
-    T_setup_ = T;
-    ++setups_;
-  }
-  if (!shiftU_) {
-    PetscCall(VecDuplicate(U0, shiftU_.out()));
-    PetscCall(VecDuplicate(U0, shiftdU_.out()));
-  }
-  PetscCall(VecCopy(U0, shiftU_));
-  PetscCall(VecCopy(dU0, shiftdU_));
-  PetscCall(ti_->Step(shiftU_, shiftdU_, r, &info));
-  PetscCall(VecAXPY(shiftU_, -1.0, U0));
-  PetscCall(VecAXPY(shiftdU_, -1.0, dU0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::PhaseStart(Vec U0, Vec dU0, PetscReal s, Vec U, Vec dU)
-{
-  PetscFunctionBeginUser;
-  PetscCall(VecWAXPY(U, s, shiftU_, U0));
-  PetscCall(VecWAXPY(dU, s, shiftdU_, dU0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive_default)
-{
-  PetscInt K = floquet_phases;
-  PetscFunctionBeginUser;
-  PetscCall(ShiftAlongOrbit(U0, dU0, T));
-  phase_s_.clear(), phase_w_.clear();
-  if (K == PETSC_DECIDE) K = adaptive_default ? 0 : 1;
-  if (K == 1) {
-    phase_s_ = {0.0}, phase_w_ = {1.0};
-    PetscFunctionReturn(0);
-  }
-  if (K >= 2) { // midpoint rule
-    for (PetscInt k = 0; k < K; ++k) phase_s_.push_back((k + 0.5) / K), phase_w_.push_back(1.0 / K);
-    PetscFunctionReturn(0);
-  }
-  // K = 0: the phase s in [0, 1] moves every status change of the flow by one step. Between the
-  // values of s where one moves, the flow is smooth in s: find them by bisection on the list of
-  // transitions, then 3-point Gauss-Legendre on each smooth piece.
-  // A probe is the flow from Z0 + s d with its transitions and, over the steps it ran, its states
-  // and the reactions entering each step. Two probes a < b whose transitions agree before step j0
-  // have states at j0 that are smooth in s on [a, b]: once b - a <= -shoot_floquet_bisect_interp
-  // (W), the flow from the midpoint starts at j0 from the mean of theirs and stops after the last
-  // differing transition, so a bisection level costs the steps between the two, not a period. All
-  // deeper probes are then linear interpolants along the first such [a, b]: state error O(W^2).
-  // Measured (3-DOF cases, planar and rectilinear, 500-4000 steps): the same pieces as flows from
-  // t = 0 at W = 1/32 and 1/16; at W = 1/4 a stick onset moved by 7.6e-6 of a step.
-  struct Probe {
-    std::vector<PetscInt> sig;
-    PetscInt              lo = 0; // column k of Z (this rank's rows of U, dU) and R (reaction entering the step) is step lo + k
-    Eigen::MatrixXd       Z, R;
-    std::vector<int>      st_lo; // statuses entering step lo (R's first column may be a mean, not a status)
-  };
-  const PetscInt   nc = model_->contacts.Size();
-  VecH             sU, sdU;
-  StepInfo         info;
-  std::vector<int> st0, prev, cur;
-  for (VecH *v : {&sU, &sdU}) PetscCall(VecDuplicate(U0, v->out()));
-  PetscInt lo, hi;
-  PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
-  const PetscInt nl = hi - lo; // states are kept by rows, on their rank: no gathers per step
-  auto           set_state = [&](const Eigen::VectorXd &z) -> PetscErrorCode {
-    PetscScalar *u, *du;
-    PetscFunctionBeginUser;
-    PetscCall(VecGetArray(sU, &u));
-    PetscCall(VecGetArray(sdU, &du));
-    for (PetscInt i = 0; i < nl; ++i) u[i] = z[i], du[i] = z[nl + i];
-    PetscCall(VecRestoreArray(sdU, &du));
-    PetscCall(VecRestoreArray(sU, &u));
-    PetscFunctionReturn(0);
-  };
-  auto get_state = [&](Eigen::Ref<Eigen::VectorXd> z) -> PetscErrorCode {
-    const PetscScalar *u, *du;
-    PetscFunctionBeginUser;
-    PetscCall(VecGetArrayRead(sU, &u));
-    PetscCall(VecGetArrayRead(sdU, &du));
-    for (PetscInt i = 0; i < nl; ++i) z[i] = PetscRealPart(u[i]), z[nl + i] = PetscRealPart(du[i]);
-    PetscCall(VecRestoreArrayRead(sdU, &du));
-    PetscCall(VecRestoreArrayRead(sU, &u));
-    PetscFunctionReturn(0);
-  };
-  // Steps [j0, j1) from state z before step j0, warm start r0, statuses st before it; transitions appended to P.sig.
-  auto run = [&](Probe &P, PetscInt j0, PetscInt j1, const Eigen::VectorXd &z, const Eigen::VectorXd &r0,
-                 const std::vector<int> &st) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    P.lo = j0;
-    P.Z.resize(2 * nl, j1 - j0 + 1), P.R.resize(3 * nc, j1 - j0 + 1);
-    P.Z.col(0) = z, P.R.col(0) = r0, P.st_lo = st;
-    PetscCall(set_state(z));
-    Eigen::VectorXd r = r0;
-    prev              = st;
-    for (PetscInt i = j0; i < j1; ++i) {
-      PetscCall(ti_->Step(sU, sdU, r, &info));
-      PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
-                 "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
-      PetscCall(get_state(P.Z.col(i - j0 + 1)));
-      P.R.col(i - j0 + 1) = r;
-      ti_->Contact().Status(r, cur);
-      for (size_t c = 0; c < cur.size(); ++c)
-        if (cur[c] != prev[c]) P.sig.insert(P.sig.end(), {i, (PetscInt)c, (PetscInt)cur[c]});
-      std::swap(prev, cur);
-    }
-    if (j1 - j0 >= steps) ++evaluations_;
-    else partial_steps_ += j1 - j0;
-    PetscFunctionReturn(0);
-  };
-  auto exact = [&](Probe &P, PetscReal s, PetscInt j1) -> PetscErrorCode {
-    Eigen::VectorXd z(2 * nl);
-    PetscFunctionBeginUser;
-    PetscCall(PhaseStart(U0, dU0, s, sU, sdU));
-    PetscCall(get_state(z));
-    P.sig.clear();
-    PetscCall(run(P, 0, j1, z, r_init_, st0));
-    PetscFunctionReturn(0);
-  };
-  ti_->Contact().Status(r_init_, st0); // ShiftAlongOrbit has set the integrator up at T
-  const PetscInt     G = 4;
-  std::vector<Probe> grid(G + 1);
-  bool               have0 = false;
-  if (tr_valid_ && trT_ == T && trU_.cols() == steps + 1 && trR_.rows() == 3 * nc) {
-    // s = 0 is the flow of the last residual evaluation when that was at (Z0, T): reuse it.
-    PetscCall(Pack(U0, dU0, T, xp_));
-    PetscBool same;
-    PetscCall(VecEqual(xp_, trx_, &same));
-    if (same) {
-      Probe &P = grid[0];
-      P.lo     = 0;
-      P.Z.resize(2 * nl, steps + 1), P.R.resize(3 * nc, steps + 1);
-      P.Z.topRows(nl) = trU_.middleRows(lo, nl), P.Z.bottomRows(nl) = trdU_.middleRows(lo, nl);
-      P.R.col(0)                = r_init_;
-      if (nc) P.R.rightCols(steps) = trR_;
-      P.st_lo = prev = st0;
-      for (PetscInt i = 0; i < steps; ++i) {
-        ti_->Contact().Status(P.R.col(i + 1), cur);
-        for (size_t c = 0; c < cur.size(); ++c)
-          if (cur[c] != prev[c]) P.sig.insert(P.sig.end(), {i, (PetscInt)c, (PetscInt)cur[c]});
-        std::swap(prev, cur);
-      }
-      have0 = true;
-    }
-  }
-  for (PetscInt j = have0 ? 1 : 0; j <= G; ++j) PetscCall(exact(grid[j], (PetscReal)j / G, steps));
-  std::vector<PetscReal> breaks;
-  std::function<PetscErrorCode(PetscReal, PetscReal, const Probe &, const Probe &)> bisect;
-  bisect = [&](PetscReal a, PetscReal b, const Probe &pa, const Probe &pb) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    if (b - a < 1e-5 || breaks.size() > 64) {
-      breaks.push_back(0.5 * (a + b));
-      PetscFunctionReturn(0);
-    }
-    const std::vector<PetscInt> &sa = pa.sig, &sb = pb.sig;
-    const PetscReal              m  = 0.5 * (a + b);
-    // sa and sb agree before step `first` and after their last differing transition (step `last`).
-    size_t ka = sa.size(), kb = sb.size(), p = 0;
-    while (ka >= 3 && kb >= 3 && std::equal(sa.begin() + ka - 3, sa.begin() + ka, sb.begin() + kb - 3)) ka -= 3, kb -= 3;
-    while (p + 3 <= ka && p + 3 <= kb && std::equal(sa.begin() + p, sa.begin() + p + 3, sb.begin() + p)) p += 3;
-    PetscInt last = -1, first = steps;
-    for (size_t j = p; j < ka; j += 3) last = std::max(last, sa[j]), first = std::min(first, sa[j]);
-    for (size_t j = p; j < kb; j += 3) last = std::max(last, sb[j]), first = std::min(first, sb[j]);
-    Probe      pm;
-    const auto has = [](const Probe &q, PetscInt j) { return j >= q.lo && j < q.lo + q.Z.cols(); };
-    if (b - a <= floquet_bisect_interp && has(pa, first) && has(pb, first)) {
-      for (size_t j = 0; j < p; j += 3)
-        if (sa[j] < first) pm.sig.insert(pm.sig.end(), sa.begin() + j, sa.begin() + j + 3);
-      const Eigen::VectorXd z  = 0.5 * (pa.Z.col(first - pa.lo) + pb.Z.col(first - pb.lo));
-      const Eigen::VectorXd r0 = pa.R.col(first - pa.lo); // a warm start only
-      std::vector<int>      st = pa.st_lo;
-      if (first > pa.lo) ti_->Contact().Status(r0, st);
-      PetscCall(run(pm, first, last + 1, z, r0, st));
-    } else PetscCall(exact(pm, m, last + 1));
-    // The flow from m takes the common tail.
-    for (size_t j = 0; j < sa.size(); j += 3)
-      if (sa[j] > last) pm.sig.insert(pm.sig.end(), sa.begin() + j, sa.begin() + j + 3);
-    if (pm.sig != sa) PetscCall(bisect(a, m, pa, pm));
-    if (pm.sig != sb) PetscCall(bisect(m, b, pm, pb));
-    PetscFunctionReturn(0);
-  };
-  for (PetscInt j = 0; j < G; ++j)
-    if (grid[j].sig != grid[j + 1].sig) PetscCall(bisect((PetscReal)j / G, (PetscReal)(j + 1) / G, grid[j], grid[j + 1]));
-  if (breaks.size() > 64) {
-    // Too many status changes to resolve one by one (large contact sets): 64 midpoints.
-    PetscCall(PetscInfo(nullptr, "%zu status changes move with the phase: midpoint rule over 64 phases\n", breaks.size()));
-    for (PetscInt k = 0; k < 64; ++k) phase_s_.push_back((k + 0.5) / 64), phase_w_.push_back(1.0 / 64);
-    PetscFunctionReturn(0);
-  }
-  std::sort(breaks.begin(), breaks.end());
-  for (PetscReal b : breaks) PetscCall(PetscInfo(nullptr, "shooting: a status change moves to another step at phase s = %.9f\n", (double)b));
-  std::vector<PetscReal> ends{0.0};
-  for (PetscReal b : breaks) ends.push_back(b);
-  ends.push_back(1.0);
-  const PetscReal x[3] = {-std::sqrt(0.6), 0.0, std::sqrt(0.6)}, w[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
-  for (size_t p = 0; p + 1 < ends.size(); ++p) {
-    const PetscReal a = ends[p], b = ends[p + 1];
-    if (b - a < 1e-8) continue;
-    for (int q = 0; q < 3; ++q) phase_s_.push_back(0.5 * (a + b) + 0.5 * (b - a) * x[q]), phase_w_.push_back(0.5 * (b - a) * w[q]);
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult)
-{
-  PetscInt N, nconv;
-  MatH     A;
-  EPSH     eps;
-  VecH     z;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetSize(U0, &N));
-  for (VecH *v : {&mono_U0_, &mono_dU0_}) PetscCall(VecDuplicate(U0, v->out()));
-  PetscCall(VecCopy(U0, mono_U0_));
-  PetscCall(VecCopy(dU0, mono_dU0_));
-  mono_T_ = T;
-  // Starting points within one step of the orbit, and their flows (the bases of the differences).
-  PetscCall(SetUpPhases(U0, dU0, T, false));
-  const size_t K = phase_s_.size();
-  mono_start_.clear(), mono_base_.clear();
-  mono_start_.resize(K), mono_base_.resize(K);
-  for (size_t k = 0; k < K; ++k) {
-    for (VecH *v : {&mono_start_[k].first, &mono_start_[k].second, &mono_base_[k].first, &mono_base_[k].second})
-      PetscCall(VecDuplicate(U0, v->out()));
-    PetscCall(PhaseStart(U0, dU0, phase_s_[k], mono_start_[k].first, mono_start_[k].second));
-    PetscCall(Flow(mono_start_[k].first, mono_start_[k].second, T, mono_base_[k].first, mono_base_[k].second));
-  }
-  // One phase on the dense back end: exact tangent products along the flow from Z0.
-  mono_exact_ = floquet_exact && ExactJacobian() && K == 1 && phase_s_[0] == 0;
-  if (mono_exact_) {
-    if (!mono_x_) PetscCall(CreateState(mono_x_.out()));
-    PetscCall(Pack(U0, dU0, T, mono_x_));
-  }
-  if (mono_exact_ && floquet_block > 0) {
-    PetscCall(FloquetBlockArnoldi(mult));
-    PetscFunctionReturn(0);
-  }
-  // Z-space vectors: the shooting packing without T.
-  PetscCall(VecCreateMPI(comm_, 2 * nloc_, PETSC_DETERMINE, z.out()));
-  PetscCall(MatCreateShell(comm_, 2 * nloc_, 2 * nloc_, 2 * N, 2 * N, this, A.out()));
-  PetscCall(MatShellSetOperation(A, MATOP_MULT, (void (*)(void))ShootingCallbacks::MonodromyMult));
-  PetscCall(EPSCreate(comm_, eps.out()));
-  PetscCall(EPSSetOptionsPrefix(eps, "shoot_floquet_"));
-  PetscCall(EPSSetOperators(eps, A, nullptr));
-  PetscCall(EPSSetProblemType(eps, EPS_NHEP));
-  PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
-  PetscCall(EPSSetWhichEigenpairs(eps, EPS_LARGEST_MAGNITUDE));
-  PetscCall(EPSSetDimensions(eps, PetscMin(floquet_nev, 2 * N - 2), PETSC_DEFAULT, PETSC_DEFAULT));
-  // Difference products carry ~fd_step relative noise: ask for no more than that allows.
-  PetscCall(EPSSetTolerances(eps, mono_exact_ ? 1e-8 : 1e-6, 200));
-  PetscCall(EPSSetFromOptions(eps));
-  PetscCall(EPSSolve(eps));
-  PetscCall(EPSGetConverged(eps, &nconv));
-  mult.clear();
-  for (PetscInt i = 0; i < nconv; ++i) {
-    PetscScalar kr, ki;
-    PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
-    mult.emplace_back(PetscRealPart(kr), PetscRealPart(ki));
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::FloquetBlockArnoldi(std::vector<std::complex<PetscReal>> &mult)
-{
-  using Eigen::Index;
-  using Eigen::MatrixXd;
-  const Index n = 2 * N_, b = floquet_block;
-  const Index nev = std::min<Index>(floquet_nev, n - 2);
-  const bool  mon = floquet_monitor;
-  PetscFunctionBeginUser;
-  if (n <= 4 * b) {
-    // A few blocks would span the space: the whole monodromy in one integration of n columns.
-    MatrixXd Mono;
-    PetscCall(TangentFlow(mono_x_, MatrixXd::Identity(n, n), Eigen::RowVectorXd::Zero(n), Mono));
-    Eigen::EigenSolver<MatrixXd> es(Mono, false);
-    mult.clear();
-    for (Index i = 0; i < n; ++i) mult.push_back(es.eigenvalues()(i));
-    std::sort(mult.begin(), mult.end(), [](auto a, auto c) { return std::abs(a) > std::abs(c); });
-    mult.resize(nev);
-    floquet_products_ = 1;
-    PetscFunctionReturn(0);
-  }
-  // Blocks of the Krylov basis: up to -shoot_floquet_max_dim columns, and never past the space.
-  const Index mmax = std::max<Index>(1, std::min<Index>(floquet_max_dim / b, n / b - 1));
-  MatrixXd    V(n, (mmax + 1) * b), H = MatrixXd::Zero((mmax + 1) * b, mmax * b), W, C;
-  {
-    // The same pseudo-random start on every rank (every rank holds the whole basis).
-    std::mt19937                     gen(2027);
-    std::normal_distribution<double> nd;
-    MatrixXd                         R0(n, b);
-    for (Index j = 0; j < b; ++j)
-      for (Index i = 0; i < n; ++i) R0(i, j) = nd(gen);
-    Eigen::HouseholderQR<MatrixXd> qr(R0);
-    V.leftCols(b) = qr.householderQ() * MatrixXd::Identity(n, b);
-  }
-  const Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(b);
-  const PetscReal          w  = 2 * PETSC_PI / mono_T_;
-  std::vector<std::complex<PetscReal>> ritz;
-  PetscInt                             used = 0;
-  for (Index j = 0; j < mmax; ++j) {
-    // On D M D^-1, D = diag(w I, I), w = 2 pi / T: same multipliers, but displacement and velocity
-    // columns of one size (M itself mixes them by factors of w ~ 1e3-1e5), which is far closer to
-    // normal, and Arnoldi's residuals then mean what they say.
-    C = V.middleCols(j * b, b);
-    C.topRows(N_) /= w;
-    PetscCall(TangentFlow(mono_x_, C, dT, W));
-    W.topRows(N_) *= w;
-    ++used;
-    const Index k = (j + 1) * b;
-    // Block Gram-Schmidt, twice (one pass loses orthogonality on the clustered multipliers).
-    for (int pass = 0; pass < 2; ++pass) {
-      C.noalias() = V.leftCols(k).transpose() * W;
-      W.noalias() -= V.leftCols(k) * C;
-      H.block(0, j * b, k, b) += C;
-    }
-    Eigen::HouseholderQR<MatrixXd> qr(W);
-    const MatrixXd                 R = qr.matrixQR().topRows(b).triangularView<Eigen::Upper>();
-    V.middleCols(k, b)               = qr.householderQ() * MatrixXd::Identity(n, b);
-    H.block(k, j * b, b, b)          = R;
-    // Ritz values of the block Hessenberg matrix and their residuals |R y_last| (y of unit norm).
-    Eigen::EigenSolver<MatrixXd> es(H.topLeftCorner(k, k), true);
-    std::vector<Index>           order(k);
-    for (Index i = 0; i < k; ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](Index a, Index c) { return std::abs(es.eigenvalues()(a)) > std::abs(es.eigenvalues()(c)); });
-    ritz.clear();
-    PetscReal worst = 0;
-    for (Index i = 0; i < std::min(nev, k); ++i) {
-      const Eigen::VectorXcd y   = es.eigenvectors().col(order[i]).normalized();
-      const std::complex<PetscReal> th = es.eigenvalues()(order[i]);
-      const PetscReal res = (R.cast<std::complex<PetscReal>>() * y.tail(b)).norm() / std::max(std::abs(th), PETSC_SMALL);
-      worst               = std::max(worst, res);
-      ritz.push_back(th);
-    }
-    if (mon)
-      PetscCall(PetscPrintf(comm_, "  Floquet block Arnoldi: %" PetscInt_FMT " x %" PetscInt_FMT " columns, largest |L| = %.6f, worst relative residual of the %" PetscInt_FMT " largest %.2e\n",
-                            (PetscInt)(j + 1), (PetscInt)b, ritz.empty() ? 0.0 : (double)std::abs(ritz[0]), (PetscInt)nev, (double)worst));
-    if (k >= nev && worst <= floquet_tol) break;
-    // An invariant subspace: the Ritz values are exact.
-    if (R.diagonal().cwiseAbs().minCoeff() <= 1e-13 * H.topLeftCorner(k, k).norm()) break;
-    if (j + 1 == mmax) {
-      char msg[200];
-      std::snprintf(msg, sizeof msg, "Floquet block Arnoldi: the %d largest multipliers reached a relative residual of %.1e, not %.1e, "
-                    "in %d columns (-shoot_floquet_max_dim)", (int)nev, (double)worst, (double)floquet_tol, (int)k);
-      PetscCall(PetscPrintf(comm_, "shooting: warning: %s\n", msg));
-    }
-  }
-  floquet_products_ = used;
-  mult = ritz;
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res)
 {
   PetscInt        N;
@@ -1354,11 +876,7 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
       }
     }
   } else {
-  if (T != T_setup_) {
-    PetscCall(ti_->SetUp(*model_, T / steps));
-    T_setup_ = T;
-    ++setups_;
-  }
+  PetscCall(SetUpAt(T));
   VecScatter sc;
   Vec        z;
   PetscCall(VecScatterCreateToZero(U0, &sc, &z));
@@ -1609,62 +1127,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.newton_evaluations      = evaluations_ + (partial_steps_ + steps - 1) / steps;
   if (res.converged && floquet) {
     PetscCall(PetscLogEventBegin(ev_floquet, 0, 0, 0, 0));
-    PetscInt N;
-    PetscCall(VecGetSize(model.F, &N));
-    if (2 * N <= floquet_dense_max) {
-      Eigen::MatrixXd Mono;
-      const bool      exact = floquet_exact && ti_->Dense();
-      if (floquet_exact && !ti_->Dense())
-        PetscCall(PetscPrintf(comm_, "shooting: exact monodromy needs the dense theta back end (N <= -theta_dense_max); "
-                                     "using finite differences\n"));
-      res.floquet_method = exact ? "exact step tangents" : "finite differences";
-
-      if (exact) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
-      else PetscCall(Monodromy(aU_, adU_, res.period, Mono));
-      res.floquet_phases = (PetscInt)phase_s_.size();
-      Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
-      for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
-      if (res.floquet_phases > 1) {
-        // The discrete map's own Jacobian at Z0 as well: where the two disagree on stability, the
-        // step is too coarse for the verdict.
-        const PetscInt keep = floquet_phases;
-        floquet_phases      = 1;
-        if (exact) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
-        else PetscCall(Monodromy(aU_, adU_, res.period, Mono));
-        floquet_phases = keep;
-        Eigen::EigenSolver<Eigen::MatrixXd> e0(Mono, false);
-        for (Eigen::Index i = 0; i < e0.eigenvalues().size(); ++i) res.floquet_at_z0.push_back(e0.eigenvalues()(i));
-      }
-    } else {
-      PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
-      res.floquet_method = !mono_exact_ ? "SLEPc, matrix-free finite differences"
-                           : floquet_block > 0 ? "block Arnoldi on exact step tangents"
-                                               : "SLEPc, matrix-free exact step tangents";
-      res.floquet_phases = (PetscInt)phase_s_.size();
-    }
-    // Sorted by modulus; the one closest to 1 is the trivial one; stable if all others are inside.
-    auto classify = [](std::vector<std::complex<PetscReal>> &m, PetscInt &trivial, PetscReal &others) {
-      std::sort(m.begin(), m.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
-      PetscReal best = kInf;
-      others         = 0;
-      for (size_t i = 0; i < m.size(); ++i)
-        if (std::abs(m[i] - 1.0) < best) best = std::abs(m[i] - 1.0), trivial = (PetscInt)i;
-      for (size_t i = 0; i < m.size(); ++i)
-        if ((PetscInt)i != trivial) others = std::max(others, std::abs(m[i]));
-    };
-    PetscReal others = 0;
-    if (!res.floquet.empty()) {
-      classify(res.floquet, res.trivial, others);
-      res.stable_cycle = others < 1;
-    }
-    if (!res.floquet_at_z0.empty()) classify(res.floquet_at_z0, res.trivial_at_z0, res.largest_at_z0);
-    if (!res.floquet.empty()) {
-      const FloquetVerdictResult v = FloquetVerdict(others, std::abs(res.floquet[res.trivial] - 1.0),
-                                                    res.floquet_at_z0.empty() ? 0.0 : std::abs(res.largest_at_z0 - others));
-      res.floquet_verdict = v.word;
-      res.floquet_margin  = v.margin;
-      res.floquet_error   = v.error;
-    }
+    PetscCall(floquet_.Compute(aU_, adU_, res.period, res));
     PetscCall(PetscLogEventEnd(ev_floquet, 0, 0, 0, 0));
   }
   res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
@@ -1783,12 +1246,6 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting/period", "units", "s"));
   PetscCall(out.WriteAttribute("/shooting/Z0", "layout", "(U, dU)"));
   PetscFunctionReturn(0);
-}
-
-FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread)
-{
-  const PetscReal margin = 1 - largest_nontrivial, error = std::max(trivial_error, phase_spread);
-  return {std::abs(margin) <= error ? "undecided" : margin > 0 ? "stable" : "unstable", margin, error};
 }
 
 } // namespace squeal
