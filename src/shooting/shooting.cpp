@@ -921,11 +921,8 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
 PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
                                ShootingResult &res)
 {
-  VecH                x;
-  SNESConvergedReason reason;
-  PetscMPIInt         rank;
+  VecH x;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
@@ -935,6 +932,42 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(ti_->SetUp(*model_, T0 / steps));
   T_setup_ = T0;
   ++setups_;
+  PetscCall(SetUpNewton());
+  PetscCall(CreateState(x.out()));
+  if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, x));
+  else PetscCall(Pack(U0, dU0, T0, x));
+  PetscCall(Newton(x, res));
+  PetscCall(GatherZ0(x, res));
+  PetscCall(Orbit(aU_, adU_, res.period, res));
+  const PetscInt newton_steps = evaluations_ * steps + partial_steps_;
+  res.newton_evaluations      = evaluations_ + (partial_steps_ + steps - 1) / steps;
+  if (res.converged && floquet) {
+    PetscCall(PetscLogEventBegin(ev_floquet, 0, 0, 0, 0));
+    PetscCall(floquet_.Compute(aU_, adU_, res.period, res));
+    PetscCall(PetscLogEventEnd(ev_floquet, 0, 0, 0, 0));
+  }
+  res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
+  res.floquet_evaluations = (evaluations_ * steps + partial_steps_ - newton_steps + steps - 1) / steps;
+  res.tangent_evaluations = tangents_;
+  res.setups              = setups_;
+  res.pre_periods         = pre_done_;
+  res.pre_period          = pre_T_;
+  // From the energy estimate, Newton can wander where the cycle's shape is far from the unstable
+  // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
+  const bool collapsed = res.reason.find("collapsed") != std::string::npos && !(deflate_power > 0);
+  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s%s",
+             res.reason.c_str(), (double)res.residual, (double)res.period,
+             collapsed ? "; keep Newton off the equilibrium with -shoot_deflate_power 2" : "",
+             res.reason.find("Krylov") != std::string::npos ? ""
+             : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
+             : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
+                                       : "; if the cycle attracts, start closer: more -shoot_pre_periods");
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetUpNewton()
+{
+  PetscFunctionBeginUser;
   jdense_  = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
   jlinear_ = ExactJacobian() && !jdense_ && linear_pc && 2 * N_ <= linear_pc_max;
   {
@@ -992,63 +1025,73 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   best_res_ = kInf;
   fail_reason_.clear();
   criterion_iterate_ = -1;
-  PetscCall(CreateState(x.out()));
-  if (pre_periods > 0) {
-    PetscCall(PetscLogEventBegin(ev_pre, 0, 0, 0, 0));
-    // Where the cycle's shape is far from the unstable mode's (many contacts with separation and
-    // stick), periods of the flow bring the start into the attracting cycle's neighbourhood. After
-    // each period the return distance is read with the period corrected to first order along the
-    // end point's vector field G: dt = -G.(Z1 - Z)/|G|^2, e = |Z1 - Z + dt G| / |Z1| (the residual
-    // Newton would see at T + dt). It stops once e < -shoot_pre_tol and starts Newton at T + dt.
-    VecH            U, dU;
-    Eigen::VectorXd r;
-    PetscBool       mon = PETSC_FALSE;
-    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
-    PetscCall(VecDuplicate(U0, U.out()));
-    PetscCall(VecDuplicate(dU0, dU.out()));
-    PetscCall(VecCopy(U0, U));
-    PetscCall(VecCopy(dU0, dU));
-    PetscReal T = T0, e = kInf;
-    PetscInt  k = 0;
-    while (k < pre_periods) {
-      PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
-      ++k;
-      PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
-      PetscScalar a1, a2, b1, b2;
-      PetscReal   n1, n2;
-      PetscCall(VecWAXPY(wU_, -1.0, U, U1_));
-      PetscCall(VecWAXPY(wdU_, -1.0, dU, dU1_));
-      PetscCall(VecDot(wU_, gU_, &a1));
-      PetscCall(VecDot(wdU_, gdU_, &a2));
-      PetscCall(VecDot(gU_, gU_, &b1));
-      PetscCall(VecDot(gdU_, gdU_, &b2));
-      const PetscReal dt = PetscRealPart(b1 + b2) > 0 ? -PetscRealPart(a1 + a2) / PetscRealPart(b1 + b2) : 0.0;
-      PetscCall(VecAXPY(wU_, dt, gU_));
-      PetscCall(VecAXPY(wdU_, dt, gdU_));
-      PetscCall(VecNorm(wU_, NORM_2, &n1));
-      PetscCall(VecNorm(wdU_, NORM_2, &n2));
-      const PetscReal d = std::hypot(n1, n2);
-      PetscCall(VecNorm(U1_, NORM_2, &n1));
-      PetscCall(VecNorm(dU1_, NORM_2, &n2));
-      e = d / std::hypot(n1, n2);
-      PetscCall(VecCopy(U1_, U));
-      PetscCall(VecCopy(dU1_, dU));
-      if (mon)
-        PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
-                              (double)(T + dt)));
-      // The corrected period is used from here on only while it stays near T0: far from the cycle
-      // the first-order correction can be large and meaningless.
-      if (std::abs(dt) < 0.05 * T0) T += dt;
-      if (e < pre_tol) break;
-    }
-    PetscCall(PetscPrintf(comm_,
-                          "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
-                          ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
-                          k, pre_periods, (double)pre_tol, (double)e, (double)T));
-    pre_done_ = k, pre_T_ = T;
-    PetscCall(PetscLogEventEnd(ev_pre, 0, 0, 0, 0));
-    PetscCall(Pack(U, dU, T, x));
-  } else PetscCall(Pack(U0, dU0, T0, x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(ev_pre, 0, 0, 0, 0));
+  // Where the cycle's shape is far from the unstable mode's (many contacts with separation and
+  // stick), periods of the flow bring the start into the attracting cycle's neighbourhood. After
+  // each period the return distance is read with the period corrected to first order along the
+  // end point's vector field G: dt = -G.(Z1 - Z)/|G|^2, e = |Z1 - Z + dt G| / |Z1| (the residual
+  // Newton would see at T + dt). It stops once e < -shoot_pre_tol and starts Newton at T + dt.
+  VecH            U, dU;
+  Eigen::VectorXd r;
+  PetscBool       mon = PETSC_FALSE;
+  PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
+  PetscCall(VecDuplicate(U0, U.out()));
+  PetscCall(VecDuplicate(dU0, dU.out()));
+  PetscCall(VecCopy(U0, U));
+  PetscCall(VecCopy(dU0, dU));
+  PetscReal T = T0, e = kInf;
+  PetscInt  k = 0;
+  while (k < pre_periods) {
+    PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
+    ++k;
+    PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
+    PetscScalar a1, a2, b1, b2;
+    PetscReal   n1, n2;
+    PetscCall(VecWAXPY(wU_, -1.0, U, U1_));
+    PetscCall(VecWAXPY(wdU_, -1.0, dU, dU1_));
+    PetscCall(VecDot(wU_, gU_, &a1));
+    PetscCall(VecDot(wdU_, gdU_, &a2));
+    PetscCall(VecDot(gU_, gU_, &b1));
+    PetscCall(VecDot(gdU_, gdU_, &b2));
+    const PetscReal dt = PetscRealPart(b1 + b2) > 0 ? -PetscRealPart(a1 + a2) / PetscRealPart(b1 + b2) : 0.0;
+    PetscCall(VecAXPY(wU_, dt, gU_));
+    PetscCall(VecAXPY(wdU_, dt, gdU_));
+    PetscCall(VecNorm(wU_, NORM_2, &n1));
+    PetscCall(VecNorm(wdU_, NORM_2, &n2));
+    const PetscReal d = std::hypot(n1, n2);
+    PetscCall(VecNorm(U1_, NORM_2, &n1));
+    PetscCall(VecNorm(dU1_, NORM_2, &n2));
+    e = d / std::hypot(n1, n2);
+    PetscCall(VecCopy(U1_, U));
+    PetscCall(VecCopy(dU1_, dU));
+    if (mon)
+      PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
+                            (double)(T + dt)));
+    // The corrected period is used from here on only while it stays near T0: far from the cycle
+    // the first-order correction can be large and meaningless.
+    if (std::abs(dt) < 0.05 * T0) T += dt;
+    if (e < pre_tol) break;
+  }
+  PetscCall(PetscPrintf(comm_,
+                        "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
+                        ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
+                        k, pre_periods, (double)pre_tol, (double)e, (double)T));
+  pre_done_ = k, pre_T_ = T;
+  PetscCall(PetscLogEventEnd(ev_pre, 0, 0, 0, 0));
+  PetscCall(Pack(U, dU, T, x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Newton(Vec x, ShootingResult &res)
+{
+  SNESConvergedReason reason;
+  PetscFunctionBeginUser;
   PetscCall(VecCopy(x, best_x_));
   defl_m_ = 0;
   PetscCall(Unpack(x, wU_, wdU_, nullptr));
@@ -1065,24 +1108,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SNESGetIterationNumber(snes_, &res.corrections));
   res.converged  = reason > 0;
   res.iterations = res.converged ? criterion_iterate_ : res.corrections;
-  if (!res.converged && fail_reason_.empty()) {
-    switch (reason) {
-    case SNES_DIVERGED_LINE_SEARCH: fail_reason_ = "line search failure"; break;
-    case SNES_DIVERGED_LINEAR_SOLVE: {
-      KSP                ksp;
-      KSPConvergedReason kr;
-      PetscInt           kit;
-      PetscCall(SNESGetKSP(snes_, &ksp));
-      PetscCall(KSPGetConvergedReason(ksp, &kr));
-      PetscCall(KSPGetIterationNumber(ksp, &kit));
-      fail_reason_ = std::string("Krylov failure on the bordered system: ") + KSPConvergedReasons[kr] + " after " + std::to_string(kit) +
-                     " iterations (-shoot_ksp_max_it, -shoot_ksp_rtol, -shoot_ksp_gmres_restart)";
-      break;
-    }
-    case SNES_DIVERGED_FUNCTION_DOMAIN: fail_reason_ = "the period left (T0/2, 2 T0)"; break;
-    default: fail_reason_ = SNESConvergedReasons[reason]; break;
-    }
-  }
+  if (!res.converged && fail_reason_.empty()) PetscCall(NewtonFailure(reason));
   res.reason           = res.converged ? "converged" : fail_reason_;
   res.residual_history = hist_res_;
   res.period_history   = hist_T_;
@@ -1090,62 +1116,66 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   if (!res.converged) PetscCall(VecCopy(best_x_, x));
   PetscCall(Unpack(x, aU_, adU_, &res.period));
   res.residual = res.converged ? hist_res_.back() : best_res_;
-  {
-    VecScatter sc;
-    Vec        z;
-    PetscCall(VecScatterCreateToZero(x, &sc, &z));
-    PetscCall(VecScatterBegin(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
-    // Global order of x is rank by rank (U block, dU block, [T]); put it back as (U, dU).
-    if (rank == 0) {
-      PetscInt           n;
-      const PetscScalar *a;
-      const PetscInt    *ranges;
-      PetscMPIInt        size;
-      PetscCallMPI(MPI_Comm_size(comm_, &size));
-      PetscCall(VecGetOwnershipRanges(model.F, &ranges));
-      PetscCall(VecGetSize(z, &n));
-      PetscCall(VecGetArrayRead(z, &a));
-      const PetscInt N = ranges[size];
-      res.Z0.assign(2 * N, 0.0);
-      PetscInt off = 0;
-      for (PetscMPIInt q = 0; q < size; ++q) {
-        const PetscInt nl = ranges[q + 1] - ranges[q];
-        for (PetscInt i = 0; i < nl; ++i) {
-          res.Z0[ranges[q] + i]     = PetscRealPart(a[off + i]);
-          res.Z0[N + ranges[q] + i] = PetscRealPart(a[off + nl + i]);
-        }
-        off += 2 * nl;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::NewtonFailure(SNESConvergedReason reason)
+{
+  PetscFunctionBeginUser;
+  switch (reason) {
+  case SNES_DIVERGED_LINE_SEARCH: fail_reason_ = "line search failure"; break;
+  case SNES_DIVERGED_LINEAR_SOLVE: {
+    KSP                ksp;
+    KSPConvergedReason kr;
+    PetscInt           kit;
+    PetscCall(SNESGetKSP(snes_, &ksp));
+    PetscCall(KSPGetConvergedReason(ksp, &kr));
+    PetscCall(KSPGetIterationNumber(ksp, &kit));
+    fail_reason_ = std::string("Krylov failure on the bordered system: ") + KSPConvergedReasons[kr] + " after " + std::to_string(kit) +
+                   " iterations (-shoot_ksp_max_it, -shoot_ksp_rtol, -shoot_ksp_gmres_restart)";
+    break;
+  }
+  case SNES_DIVERGED_FUNCTION_DOMAIN: fail_reason_ = "the period left (T0/2, 2 T0)"; break;
+  default: fail_reason_ = SNESConvergedReasons[reason]; break;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::GatherZ0(Vec x, ShootingResult &res)
+{
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  VecScatter sc;
+  Vec        z;
+  PetscCall(VecScatterCreateToZero(x, &sc, &z));
+  PetscCall(VecScatterBegin(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
+  // Global order of x is rank by rank (U block, dU block, [T]); put it back as (U, dU).
+  if (rank == 0) {
+    PetscInt           n;
+    const PetscScalar *a;
+    const PetscInt    *ranges;
+    PetscMPIInt        size;
+    PetscCallMPI(MPI_Comm_size(comm_, &size));
+    PetscCall(VecGetOwnershipRanges(model_->F, &ranges));
+    PetscCall(VecGetSize(z, &n));
+    PetscCall(VecGetArrayRead(z, &a));
+    const PetscInt N = ranges[size];
+    res.Z0.assign(2 * N, 0.0);
+    PetscInt off = 0;
+    for (PetscMPIInt q = 0; q < size; ++q) {
+      const PetscInt nl = ranges[q + 1] - ranges[q];
+      for (PetscInt i = 0; i < nl; ++i) {
+        res.Z0[ranges[q] + i]     = PetscRealPart(a[off + i]);
+        res.Z0[N + ranges[q] + i] = PetscRealPart(a[off + nl + i]);
       }
-      PetscCall(VecRestoreArrayRead(z, &a));
+      off += 2 * nl;
     }
-    PetscCall(VecDestroy(&z));
-    PetscCall(VecScatterDestroy(&sc));
+    PetscCall(VecRestoreArrayRead(z, &a));
   }
-  PetscCall(Orbit(aU_, adU_, res.period, res));
-  const PetscInt newton_steps = evaluations_ * steps + partial_steps_;
-  res.newton_evaluations      = evaluations_ + (partial_steps_ + steps - 1) / steps;
-  if (res.converged && floquet) {
-    PetscCall(PetscLogEventBegin(ev_floquet, 0, 0, 0, 0));
-    PetscCall(floquet_.Compute(aU_, adU_, res.period, res));
-    PetscCall(PetscLogEventEnd(ev_floquet, 0, 0, 0, 0));
-  }
-  res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
-  res.floquet_evaluations = (evaluations_ * steps + partial_steps_ - newton_steps + steps - 1) / steps;
-  res.tangent_evaluations = tangents_;
-  res.setups              = setups_;
-  res.pre_periods         = pre_done_;
-  res.pre_period          = pre_T_;
-  // From the energy estimate, Newton can wander where the cycle's shape is far from the unstable
-  // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
-  const bool collapsed = res.reason.find("collapsed") != std::string::npos && !(deflate_power > 0);
-  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s%s",
-             res.reason.c_str(), (double)res.residual, (double)res.period,
-             collapsed ? "; keep Newton off the equilibrium with -shoot_deflate_power 2" : "",
-             res.reason.find("Krylov") != std::string::npos ? ""
-             : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
-             : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
-                                       : "; if the cycle attracts, start closer: more -shoot_pre_periods");
+  PetscCall(VecDestroy(&z));
+  PetscCall(VecScatterDestroy(&sc));
   PetscFunctionReturn(0);
 }
 

@@ -161,6 +161,15 @@ private:
     else partial_steps_ += n;
   }
   PetscErrorCode VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU); // G(Z)
+  // The steps of Solve: the SNES, KSP and preconditioner for this model's back end and size (and
+  // the per-solve state reset); the -shoot_pre_periods from (U0, dU0, T0), leaving the start of
+  // Newton in x; Newton from x, leaving the returned iterate in x and (aU_, adU_); the reason of a
+  // failed SNES; the returned Z0 on rank 0 in the natural order (U, dU).
+  PetscErrorCode SetUpNewton();
+  PetscErrorCode PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x);
+  PetscErrorCode Newton(Vec x, ShootingResult &res);
+  PetscErrorCode NewtonFailure(SNESConvergedReason reason);
+  PetscErrorCode GatherZ0(Vec x, ShootingResult &res);
   PetscErrorCode Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
   // The flow from the last residual evaluation (x, Z(x), last reaction): the anchor reuses it.
   VecH            lastx_, lastU1_, lastdU1_;
