@@ -65,8 +65,8 @@ struct ShootingResult {
   PetscReal                            largest_at_z0 = 0;  // largest non-trivial |L| at Z0
   PetscInt                             trivial = -1;       // index of the multiplier closest to 1
   bool                                 stable_cycle = false; // largest non-trivial |L| < 1 (see the verdict)
-  // The verdict with its error (FloquetVerdict below): "stable", "unstable" or "undecided".
-  std::string                          floquet_verdict; // (floquet/floquet.h)
+  // The verdict with its error (FloquetVerdict, floquet/floquet.h): "stable", "unstable" or "undecided".
+  std::string                          floquet_verdict;
   PetscReal                            floquet_margin = 0, floquet_error = 0;
   std::vector<PetscReal>               orbit_t, orbit_U;   // one period, rank 0
   std::vector<PetscInt>                orbit_status;       // per step and point
