@@ -1,299 +1,33 @@
 #include "squeal/shooting/shooting.h"
+#include "internal.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
-#include <random>
-#include <functional>
 #include <cmath>
 #include <cstdio>
 
 namespace squeal {
 
+namespace shoot_ev {
+PetscLogEvent pre = 0, floquet = 0, tangent = 0, flow = 0;
+} // namespace shoot_ev
+
 namespace {
-// -log_view events: the parts of a shooting run (SNESSolve is PETSc's own).
-PetscLogEvent ev_pre = 0, ev_floquet = 0, ev_tangent = 0, ev_flow = 0;
 PetscErrorCode RegisterEvents()
 {
   PetscFunctionBeginUser;
-  if (ev_pre) PetscFunctionReturn(0);
-  PetscCall(PetscLogEventRegister("ShootPrePeriods", SNES_CLASSID, &ev_pre));
-  PetscCall(PetscLogEventRegister("ShootFloquet", SNES_CLASSID, &ev_floquet));
-  PetscCall(PetscLogEventRegister("ShootTangentFlow", SNES_CLASSID, &ev_tangent));
-  PetscCall(PetscLogEventRegister("ShootFlow", SNES_CLASSID, &ev_flow));
+  if (shoot_ev::pre) PetscFunctionReturn(0);
+  PetscCall(PetscLogEventRegister("ShootPrePeriods", SNES_CLASSID, &shoot_ev::pre));
+  PetscCall(PetscLogEventRegister("ShootFloquet", SNES_CLASSID, &shoot_ev::floquet));
+  PetscCall(PetscLogEventRegister("ShootTangentFlow", SNES_CLASSID, &shoot_ev::tangent));
+  PetscCall(PetscLogEventRegister("ShootFlow", SNES_CLASSID, &shoot_ev::flow));
   PetscFunctionReturn(0);
 }
 } // namespace
-
-// SNES callbacks: C functions that reach the Shooting object through their context.
-struct ShootingCallbacks {
-  static PetscErrorCode Function(SNES, Vec x, Vec f, void *ctx)
-  {
-    auto *s = static_cast<Shooting *>(ctx);
-    PetscFunctionBeginUser;
-    PetscCall(s->Residual(x, f));
-    PetscFunctionReturn(0);
-  }
-  static PetscErrorCode Jacobian(SNES snes, Vec x, Mat, Mat, void *ctx)
-  {
-    auto *s = static_cast<Shooting *>(ctx);
-    PetscBool same = PETSC_FALSE;
-    PetscFunctionBeginUser;
-    if (s->ExactJacobian()) {
-      // Products are tangents along the residual's flow at x, stored when SNES computed it.
-      PetscCall(s->EnsureTrajectory(x));
-      if (s->jdense_) PetscCall(s->BuildDenseJacobian(x));
-      else if (s->jlinear_) PetscCall(s->BuildLinearPreconditioner(x));
-      PetscCall(VecCopy(x, s->xbase_));
-      PetscCall(s->SetDeflationBase(snes, x));
-      PetscFunctionReturn(0);
-    }
-    // The base point of the products: reuse the residual SNES just computed there.
-    if (s->xbase_) PetscCall(VecEqual(x, s->xbase_, &same));
-    if (!same) {
-      PetscCall(VecCopy(x, s->xbase_));
-      PetscCall(s->Residual(x, s->fbase_));
-    }
-    PetscFunctionReturn(0);
-  }
-  // The dense bordered Jacobian's LU as preconditioner: GMRES converges in one iteration (or the
-  // LU of the linearised one, -shoot_linear_pc: GMRES then iterates on what the cycle adds).
-  static PetscErrorCode DenseSolve(PC pc, Vec v, Vec y)
-  {
-    Shooting       *s;
-    Eigen::VectorXd z;
-    PetscFunctionBeginUser;
-    PetscCall(PCShellGetContext(pc, &s));
-    PetscCall(s->ToNatural(v, z));
-    z = s->jlu_.solve(z);
-    if (s->defl_m_ > 0) z /= s->defl_m_; // (m J)^-1: the rank-one part of the deflated Jacobian is left to GMRES
-    PetscCall(s->FromNatural(z, y));
-    PetscFunctionReturn(0);
-  }
-  static PetscErrorCode Mult(Mat J, Vec v, Vec y)
-  {
-    Shooting *s;
-    PetscFunctionBeginUser;
-    PetscCall(MatShellGetContext(J, &s));
-    PetscCall(s->JacobianProduct(s->xbase_, v, y));
-    if (s->defl_m_ > 0) {
-      // d(m F) v = m J v + (grad m . v) F at the base (difference products differentiate m F itself).
-      PetscScalar a, b;
-      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
-      PetscCall(VecDot(s->wU_, s->deflgU_, &a));
-      PetscCall(VecDot(s->wdU_, s->deflgdU_, &b));
-      PetscCall(VecScale(y, s->defl_m_));
-      PetscCall(VecAXPY(y, a + b, s->deflF_));
-    }
-    PetscFunctionReturn(0);
-  }
-  // y = M v by forward differences of the flow, displacement and velocity parts of v perturbed
-  // separately with steps scaled by ||U0|| and ||dU0||, as the dense columns are: one scale for
-  // both would shift impacts by far more than the displacements allow.
-  static PetscErrorCode MonodromyMult(Mat A, Vec v, Vec y)
-  {
-    Shooting *s;
-    PetscFunctionBeginUser;
-    PetscCall(MatShellGetContext(A, &s));
-    if (s->mono_exact_) {
-      // The exact tangent along the stored flow from Z0: no difference noise, no extra factorisation.
-      const PetscInt     N = s->N_;
-      Eigen::MatrixXd    dZ0(2 * N, 1), dZ1;
-      Eigen::VectorXd    part(N), out(2 * N + 1);
-      Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(1);
-      PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
-      PetscCall(s->Full(s->wU_, part));
-      dZ0.col(0).head(N) = part;
-      PetscCall(s->Full(s->wdU_, part));
-      dZ0.col(0).tail(N) = part;
-      PetscCall(s->TangentFlow(s->mono_x_, dZ0, dT, dZ1));
-      out.head(2 * N) = dZ1.col(0);
-      out[2 * N]      = 0;
-      PetscCall(s->FromNatural(out, y));
-      PetscFunctionReturn(0);
-    }
-    PetscCall(VecZeroEntries(s->aU_));
-    PetscCall(VecZeroEntries(s->adU_));
-    const PetscInt K = (PetscInt)s->mono_start_.size();
-    for (PetscInt k = 0; k < K; ++k) {
-      const auto &st = s->mono_start_[k];
-      const auto &bs = s->mono_base_[k];
-      for (int part = 0; part < 2; ++part) {
-        PetscReal nv, nz;
-        PetscCall(s->Unpack(v, s->wU_, s->wdU_, nullptr));
-        Vec moved = part == 0 ? s->wU_ : s->wdU_, fixed = part == 0 ? s->wdU_ : s->wU_;
-        PetscCall(VecNorm(moved, NORM_2, &nv));
-        if (nv == 0) continue;
-        PetscCall(VecNorm(part == 0 ? s->mono_U0_ : s->mono_dU0_, NORM_2, &nz));
-        const PetscReal eps = s->fd_step * (nz > 0 ? nz : 1.0) / nv;
-        PetscCall(VecZeroEntries(fixed));
-        PetscCall(VecAYPX(s->wU_, eps, st.first));
-        PetscCall(VecAYPX(s->wdU_, eps, st.second));
-        PetscCall(s->Flow(s->wU_, s->wdU_, s->mono_T_, s->U1_, s->dU1_));
-        PetscCall(VecAXPY(s->U1_, -1.0, bs.first));
-        PetscCall(VecAXPY(s->dU1_, -1.0, bs.second));
-        PetscCall(VecAXPY(s->aU_, s->phase_w_[k] / eps, s->U1_));
-        PetscCall(VecAXPY(s->adU_, s->phase_w_[k] / eps, s->dU1_));
-      }
-    }
-    PetscCall(s->Pack(s->aU_, s->adU_, 0.0, y));
-    PetscFunctionReturn(0);
-  }
-  // GMRES on products: PETSc's test, and once ||H|| / ||Z0|| < eps1 the solve only has to tell
-  // whether |dT| / T < eps2 (quadratic convergence makes dT tiny there): a residual reduction of
-  // 1e-2 decides that and still improves the iterate, at a third of the products of a tight solve.
-  static PetscErrorCode KrylovConverged(KSP ksp, PetscInt it, PetscReal rnorm, KSPConvergedReason *reason, void *ctx)
-  {
-    auto *s = static_cast<Shooting *>(ctx);
-    PetscFunctionBeginUser;
-    PetscCall(KSPConvergedDefault(ksp, it, rnorm, reason, s->ksp_default_ctx_));
-    if (it == 0) s->rnorm0_ = rnorm;
-    else if (*reason == KSP_CONVERGED_ITERATING && s->confirm_only_ && rnorm <= 1e-2 * s->rnorm0_) *reason = KSP_CONVERGED_RTOL;
-    PetscFunctionReturn(0);
-  }
-  static PetscErrorCode Update(SNES snes, PetscInt)
-  {
-    Shooting *s;
-    Vec       x;
-    PetscFunctionBeginUser;
-    PetscCall(SNESGetApplicationContext(snes, &s));
-    s->confirm_only_ = s->ew && !s->hist_res_.empty() && s->hist_res_.back() < s->eps1;
-    PetscCall(SNESGetSolution(snes, &x));
-    PetscCall(s->SetAnchor(x));
-    // The new anchor is x itself, so the phase row of F(x) is 0: set it rather than integrate
-    // the period again, for SNES's right-hand side and for the base of difference products.
-    Vec f;
-    PetscInt nl;
-    PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
-    PetscCall(VecGetLocalSize(f, &nl));
-    // Get/restore on every rank, not only on the one that owns the phase row: restoring bumps the
-    // Vec's state, and a rank whose state did not move would keep its cached norm and skip the
-    // reduction of the next VecNorm that the other rank enters (a deadlock under MPI).
-    PetscScalar *a;
-    PetscCall(VecGetArray(f, &a));
-    if (nl > 2 * s->nloc_) a[2 * s->nloc_] = 0;
-    PetscCall(VecRestoreArray(f, &a));
-    PetscCall(VecCopy(x, s->xbase_));
-    PetscCall(VecCopy(f, s->fbase_));
-    PetscFunctionReturn(0);
-  }
-  static PetscErrorCode Converged(SNES snes, PetscInt it, PetscReal, PetscReal, PetscReal fnorm, SNESConvergedReason *reason,
-                                  void *ctx)
-  {
-    auto     *s = static_cast<Shooting *>(ctx);
-    Vec       x, f, dx;
-    PetscReal T, nU, ndU, p = 0;
-    PetscInt  max_it;
-    PetscFunctionBeginUser;
-    *reason = SNES_CONVERGED_ITERATING;
-    PetscCall(SNESGetSolution(snes, &x));
-    PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
-    PetscCall(s->Unpack(x, s->wU_, s->wdU_, &T));
-    PetscCall(s->Unpack(f, s->aU_, s->adU_, &p));
-    PetscCall(VecNorm(s->wU_, NORM_2, &nU));
-    PetscCall(VecNorm(s->wdU_, NORM_2, &ndU));
-    // SNES sees the deflated residual m (H, p): the stopping rule (6.3) reads H itself.
-    PetscReal m, coef;
-    PetscCall(s->Deflation(s->wU_, s->wdU_, &m, &coef));
-    const PetscReal nH  = std::sqrt(std::max(0.0, fnorm * fnorm - p * p)) / m;
-    const PetscReal res = nH / std::hypot(nU, ndU);
-    char            mtxt[32] = "";
-    if (s->deflate_power > 0) std::snprintf(mtxt, sizeof mtxt, "  m = %.3f", (double)m);
-    s->hist_res_.push_back(res);
-    s->hist_T_.push_back(T);
-    if (res < s->best_res_) {
-      s->best_res_ = res;
-      PetscCall(VecCopy(x, s->best_x_));
-    }
-    PetscReal dT = kInf;
-    if (it > 0) {
-      PetscCall(SNESGetSolutionUpdate(snes, &dx));
-      PetscCall(s->Unpack(dx, s->aU_, s->adU_, &dT));
-    }
-    PetscBool mon = PETSC_FALSE;
-    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
-    if (mon) {
-      // Distance from the sliding equilibrium (the trivial root) and the flow's contact regime.
-      PetscReal dq, open = 0, stick = 0;
-      PetscCall(VecWAXPY(s->tmp_, -1.0, s->Ue_, s->wU_));
-      PetscCall(VecNorm(s->tmp_, NORM_2, &dq));
-      PetscBool same = PETSC_FALSE;
-      if (s->tr_valid_) PetscCall(VecEqual(x, s->trx_, &same));
-      if (same && s->trR_.rows() > 0) {
-        std::vector<int> st;
-        for (Eigen::Index i = 0; i < s->trR_.cols(); ++i) {
-          s->ti_->Contact().Status(s->trR_.col(i), st);
-          for (int c : st) open += c == kOpen, stick += c == kStick;
-        }
-        open /= (PetscReal)(s->trR_.cols() * s->trR_.rows() / 3), stick /= (PetscReal)(s->trR_.cols() * s->trR_.rows() / 3);
-      }
-      KSP      ksp;
-      PetscInt kit = 0;
-      PetscCall(SNESGetKSP(snes, &ksp));
-      if (it > 0) PetscCall(KSPGetIterationNumber(ksp, &kit));
-      PetscCall(PetscPrintf(s->comm_,
-                            "  shooting %2" PetscInt_FMT ": ||H||/||Z0|| = %.3e  T = %.9f s  dT/T = %.3e  |U-Ue| = %.3e |dU| = %.3e"
-                            "  open %.1f%% stick %.1f%%  ksp %" PetscInt_FMT "%s\n",
-                            it, (double)res, (double)T, it > 0 ? (double)(std::abs(dT) / T) : 0.0, (double)dq, (double)ndU,
-                            100 * (double)open, 100 * (double)stick, kit, mtxt));
-    }
-    if (PetscIsInfOrNanReal(fnorm)) {
-      *reason        = SNES_DIVERGED_FNORM_NAN;
-      s->fail_reason_ = "residual is NaN or infinite";
-    } else if (it > 0 && s->hist_res_[s->hist_res_.size() - 2] < s->eps1 && std::abs(dT) / T < s->eps2) {
-      // (6.3) at the same iterate x_{it-1}: its residual, and the correction (dZ, dT) computed
-      // there, the one that produced x_it (applied: x_it is returned).
-      *reason              = SNES_CONVERGED_FNORM_RELATIVE;
-      s->criterion_iterate_ = it - 1;
-    } else {
-      const size_t n = s->hist_res_.size();
-      if (n >= 4 && s->hist_res_[n - 1] > s->hist_res_[n - 2] && s->hist_res_[n - 2] > s->hist_res_[n - 3] &&
-          s->hist_res_[n - 3] > s->hist_res_[n - 4]) {
-        *reason        = SNES_DIVERGED_DTOL;
-        s->fail_reason_ = "the residual grew for 3 iterations in a row";
-      }
-      // Plain Newton caught in a 2-cycle: the period map is not smooth near the cycle (a short
-      // stick or contact phase that appears and disappears between the two iterates).
-      const auto &r = s->hist_res_, &Th = s->hist_T_;
-      if (n >= 6 && r[n - 1] > s->eps1) {
-        bool two_cycle = std::abs(r[n - 1] - r[n - 2]) > 1e-2 * r[n - 1];
-        for (size_t k = n - 1; k >= n - 2; --k)
-          two_cycle = two_cycle && std::abs(r[k] - r[k - 2]) < 1e-2 * r[k] && std::abs(r[k - 2] - r[k - 4]) < 1e-2 * r[k] &&
-                      std::abs(Th[k] - Th[k - 2]) < 1e-7 * Th[k] && std::abs(Th[k - 2] - Th[k - 4]) < 1e-7 * Th[k];
-        if (two_cycle) {
-          *reason = SNES_DIVERGED_DTOL;
-          char msg[320];
-          std::snprintf(msg, sizeof msg,
-                        "Newton alternates between two iterates (||H||/||Z0|| = %.2e and %.2e): the period map is not smooth "
-                        "near this cycle; try -shoot_snes_linesearch_type cp or more -shoot_steps",
-                        (double)r[n - 2], (double)r[n - 1]);
-          s->fail_reason_ = msg;
-        }
-      }
-      // Orbit collapsing onto the equilibrium: a trivial fixed point of the flow.
-      PetscCall(VecWAXPY(s->tmp_, -1.0, s->Ue_, s->wU_));
-      PetscReal d;
-      PetscCall(VecNorm(s->tmp_, NORM_2, &d));
-      d = std::hypot(d, ndU);
-      if (it == 0) s->z_e_dist0_ = d;
-      else if (d < 1e-3 * s->z_e_dist0_) {
-        *reason        = SNES_DIVERGED_DTOL;
-        s->fail_reason_ = "the orbit collapsed onto the sliding equilibrium";
-      }
-      PetscCall(SNESGetTolerances(snes, nullptr, nullptr, nullptr, &max_it, nullptr));
-      if (*reason == SNES_CONVERGED_ITERATING && it >= max_it) {
-        *reason        = SNES_DIVERGED_MAX_IT;
-        s->fail_reason_ = "no convergence in " + std::to_string(max_it) + " Newton iterations (-shoot_snes_max_it)";
-      }
-    }
-    PetscFunctionReturn(0);
-  }
-};
 
 Shooting::~Shooting()
 {
@@ -412,8 +146,7 @@ PetscErrorCode Shooting::SetFromOptions()
 PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti)
 {
   PetscFunctionBeginUser;
-  // A new model may have another size: the one-step shift is rebuilt on first use.
-  shiftU_.reset(), shiftdU_.reset();
+  floquet_.Reset();
   if (!snes_) PetscCall(SetFromOptions());
   model_ = &model;
   ti_    = &ti;
@@ -500,828 +233,6 @@ PetscErrorCode Shooting::Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end, std::vector<PetscInt> *transitions)
-{
-  Eigen::VectorXd r = r_init_;
-  StepInfo        info;
-  std::vector<int> prev, cur;
-  PetscFunctionBeginUser;
-  PetscCall(PetscLogEventBegin(ev_flow, 0, 0, 0, 0));
-  // A new period means a new step size: (S1)-(S3) again.
-  if (T != T_setup_) {
-    PetscCall(ti_->SetUp(*model_, T / steps));
-    T_setup_ = T;
-    ++setups_;
-  }
-  PetscCall(VecCopy(U, U1));
-  PetscCall(VecCopy(dU, dU1));
-  const PetscInt nc = model_->contacts.Size();
-  if (record_) {
-    trU_.resize(N_, steps + 1), trdU_.resize(N_, steps + 1), trV_.resize(3 * nc, steps + 1), trR_.resize(3 * nc, steps);
-    PetscCall(Full(U1, trU_.col(0)));
-    PetscCall(Full(dU1, trdU_.col(0)));
-    if (nc) {
-      PetscCall(ti_->Local(dU1, vloc_));
-      trV_.col(0) = vloc_;
-    }
-  }
-  if (transitions) {
-    transitions->clear();
-    ti_->Contact().Status(r, prev);
-  }
-  const PetscInt run = flow_stop_ > 0 ? std::min(flow_stop_, steps) : steps;
-  for (PetscInt i = 0; i < run; ++i) {
-    PetscCall(ti_->Step(U1, dU1, r, &info));
-    PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
-               "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
-    if (record_) {
-      PetscCall(Full(U1, trU_.col(i + 1)));
-      PetscCall(Full(dU1, trdU_.col(i + 1)));
-      if (nc) {
-        trR_.col(i) = r;
-        PetscCall(ti_->Local(dU1, vloc_));
-        trV_.col(i + 1) = vloc_;
-      }
-    }
-    if (transitions) {
-      ti_->Contact().Status(r, cur);
-      for (size_t c = 0; c < cur.size(); ++c)
-        if (cur[c] != prev[c]) transitions->insert(transitions->end(), {i, (PetscInt)c, (PetscInt)cur[c]});
-      std::swap(prev, cur);
-    }
-  }
-  if (run < steps) partial_steps_ += run;
-  else ++evaluations_;
-  if (r_end) *r_end = r;
-  PetscCall(PetscLogEventEnd(ev_flow, 0, 0, 0, 0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU)
-{
-  PetscFunctionBeginUser;
-  // G(Z) = (dU, M^-1 (F + H r - C dU - K U))
-  PetscCall(VecCopy(dU, gU));
-  PetscCall(MatMult(model_->K, U, tmp_));
-  PetscCall(VecAYPX(tmp_, -1.0, model_->F));
-  if (model_->HasDamping()) {
-    PetscCall(MatMult(model_->C, dU, gdU));
-    PetscCall(VecAXPY(tmp_, -1.0, gdU));
-  }
-  if (r.size()) PetscCall(model_->contacts.AddForce(r.data(), tmp_));
-  PetscCall(KSPSolve(mass_ksp_, tmp_, gdU));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::SetAnchor(Vec x)
-{
-  PetscReal       T;
-  Eigen::VectorXd r;
-  PetscFunctionBeginUser;
-  PetscBool same = PETSC_FALSE;
-  PetscCall(Unpack(x, ZaU_, ZadU_, &T));
-  // The anchor is the iterate whose residual SNES has just computed: reuse that flow.
-  if (last_valid_) PetscCall(VecEqual(x, lastx_, &same));
-  if (!same) {
-    PetscCall(Flow(ZaU_, ZadU_, T, U1_, dU1_, &r));
-    PetscCall(VectorField(U1_, dU1_, r, GaU_, GadU_));
-  } else PetscCall(VectorField(lastU1_, lastdU1_, last_r_, GaU_, GadU_));
-  anchored_ = true;
-  PetscCall(VecSet(jx_, PETSC_INFINITY)); // a dense Jacobian holds the old anchor's row
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::EquilibriumDistance(Vec U, Vec dU, PetscReal *d)
-{
-  PetscReal       a, b;
-  const PetscReal w = 2 * PETSC_PI / T0_;
-  PetscFunctionBeginUser;
-  PetscCall(VecWAXPY(tmp_, -1.0, Ue_, U));
-  PetscCall(VecNorm(tmp_, NORM_2, &a));
-  PetscCall(VecNorm(dU, NORM_2, &b));
-  *d = std::hypot(w * a, b);
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::Deflation(Vec U, Vec dU, PetscReal *m, PetscReal *coef)
-{
-  PetscReal d;
-  PetscFunctionBeginUser;
-  *m = 1, *coef = 0;
-  if (!(deflate_power > 0) || !(dist0_ > 0)) PetscFunctionReturn(0);
-  PetscCall(EquilibriumDistance(U, dU, &d));
-  if (!(d > 0)) { // on the equilibrium itself the deflated residual is infinite
-    *m = PETSC_INFINITY;
-    PetscFunctionReturn(0);
-  }
-  const PetscReal q = std::pow(d / dist0_, -deflate_power);
-  *m                = q + deflate_shift;
-  *coef             = -deflate_power * q / (d * d); // grad m = coef (omega_0^2 (U - U_e), dU)
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::Residual(Vec x, Vec f)
-{
-  PetscReal   T, p = 0;
-  PetscScalar d1, d2;
-  PetscFunctionBeginUser;
-  PetscCall(Unpack(x, U_, dU_, &T));
-  if (!(T > 0.5 * T0_ && T < 2 * T0_)) {
-    fail_reason_ = "the period left (T0/2, 2 T0): T = " + std::to_string(T) + " s";
-    if (snes_) PetscCall(SNESSetFunctionDomainError(snes_));
-    PetscCall(VecSet(f, PETSC_INFINITY));
-    PetscFunctionReturn(0);
-  }
-  // With exact products the Jacobian integrates the tangent along this very flow: keep it.
-  record_ = ExactJacobian();
-  PetscErrorCode ierr = Flow(U_, dU_, T, U1_, dU1_, &last_r_);
-  record_ = false;
-  PetscCall(ierr);
-  if (ExactJacobian()) {
-    PetscCall(VecCopy(x, trx_));
-    trT_       = T;
-    tr_valid_  = true;
-    trC_ready_ = false;
-  }
-  PetscCall(VecCopy(x, lastx_));
-  PetscCall(VecCopy(U1_, lastU1_));
-  PetscCall(VecCopy(dU1_, lastdU1_));
-  last_valid_ = true;
-  PetscCall(VecAXPY(U1_, -1.0, U_));
-  PetscCall(VecAXPY(dU1_, -1.0, dU_));
-  if (anchored_) {
-    PetscCall(VecWAXPY(wU_, -1.0, ZaU_, U_));
-    PetscCall(VecWAXPY(wdU_, -1.0, ZadU_, dU_));
-    PetscCall(VecDot(wU_, GaU_, &d1));
-    PetscCall(VecDot(wdU_, GadU_, &d2));
-    p = PetscRealPart(d1 + d2);
-  }
-  PetscCall(Pack(U1_, dU1_, p, f));
-  if (deflate_power > 0) {
-    PetscReal m, coef;
-    PetscCall(Deflation(U_, dU_, &m, &coef));
-    PetscCall(VecScale(f, m));
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::SetDeflationBase(SNES snes, Vec x)
-{
-  PetscReal coef;
-  Vec       f;
-  PetscFunctionBeginUser;
-  defl_m_ = 0;
-  if (!(deflate_power > 0) || !(dist0_ > 0)) PetscFunctionReturn(0);
-  PetscCall(Unpack(x, U_, dU_, nullptr));
-  PetscCall(Deflation(U_, dU_, &defl_m_, &coef)); // leaves U0 - U_e in tmp_
-  const PetscReal w = 2 * PETSC_PI / T0_;
-  PetscCall(VecAXPBY(deflgU_, coef * w * w, 0.0, tmp_));
-  PetscCall(VecAXPBY(deflgdU_, coef, 0.0, dU_));
-  // SNES's function at x is m F(x) (its phase row set to 0 by the update): F = that / m.
-  PetscCall(SNESGetFunction(snes, &f, nullptr, nullptr));
-  PetscCall(VecAXPBY(deflF_, 1 / defl_m_, 0.0, f));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
-{
-  PetscReal nx, nv;
-  PetscBool same = PETSC_FALSE;
-  PetscFunctionBeginUser;
-  if (ExactJacobian()) {
-    Eigen::VectorXd z, out;
-    if (jdense_) PetscCall(VecEqual(x, jx_, &same));
-    PetscCall(ToNatural(v, z));
-    const PetscInt n2 = 2 * N_;
-    if (same) out = Jd_ * z;
-    else {
-      Eigen::MatrixXd    dZ1;
-      Eigen::RowVectorXd dT(1);
-      dT[0] = z[n2];
-      PetscCall(TangentFlow(x, z.head(n2), dT, dZ1));
-      Eigen::VectorXd g(n2);
-      PetscCall(Full(GaU_, g.head(N_)));
-      PetscCall(Full(GadU_, g.tail(N_)));
-      out.resize(n2 + 1);
-      out.head(n2) = dZ1.col(0) - z.head(n2);
-      out[n2]      = anchored_ ? g.dot(z.head(n2)) : 0.0;
-    }
-    PetscCall(FromNatural(out, y));
-    PetscFunctionReturn(0);
-  }
-  PetscCall(VecEqual(x, xbase_, &same));
-  if (!same) {
-    PetscCall(VecCopy(x, xbase_));
-    PetscCall(Residual(x, fbase_));
-  }
-  PetscCall(VecNorm(v, NORM_2, &nv));
-  if (nv == 0) {
-    PetscCall(VecZeroEntries(y));
-    PetscFunctionReturn(0);
-  }
-  PetscCall(VecNorm(x, NORM_2, &nx));
-  const PetscReal eps = fd_step * nx / nv;
-  PetscCall(VecWAXPY(xp_, eps, v, x));
-  PetscCall(Residual(xp_, y));
-  PetscCall(VecAXPY(y, -1.0, fbase_));
-  PetscCall(VecScale(y, 1.0 / eps));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::Full(Vec v, Eigen::Ref<Eigen::VectorXd> out)
-{
-  PetscFunctionBeginUser;
-  if (size_ > 1) {
-    PetscCall(gather_(v, out));
-    PetscFunctionReturn(0);
-  }
-  const PetscScalar *a;
-  PetscCall(VecGetArrayRead(v, &a));
-  for (PetscInt i = 0; i < N_; ++i) out[i] = PetscRealPart(a[i]);
-  PetscCall(VecRestoreArrayRead(v, &a));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::ToNatural(Vec x, Eigen::VectorXd &z)
-{
-  PetscReal T;
-  PetscFunctionBeginUser;
-  z.resize(2 * N_ + 1);
-  PetscCall(Unpack(x, wU_, wdU_, &T));
-  PetscCall(Full(wU_, z.head(N_)));
-  PetscCall(Full(wdU_, z.segment(N_, N_)));
-  z[2 * N_] = T;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::FromNatural(const Eigen::VectorXd &z, Vec x)
-{
-  PetscInt     lo, hi, nl;
-  PetscScalar *a;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetOwnershipRange(model_->F, &lo, &hi));
-  PetscCall(VecGetLocalSize(x, &nl));
-  PetscCall(VecGetArray(x, &a));
-  for (PetscInt i = 0; i < nloc_; ++i) a[i] = z[lo + i], a[nloc_ + i] = z[N_ + lo + i];
-  if (nl > 2 * nloc_) a[2 * nloc_] = z[2 * N_];
-  PetscCall(VecRestoreArray(x, &a));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::EnsureTrajectory(Vec x)
-{
-  PetscBool same = PETSC_FALSE;
-  PetscFunctionBeginUser;
-  if (tr_valid_) PetscCall(VecEqual(x, trx_, &same));
-  if (!same) {
-    PetscCall(Residual(x, fp_));
-    PetscCheck(tr_valid_, comm_, PETSC_ERR_PLIB, "shooting: no flow at this iterate (period outside (T0/2, 2 T0))");
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT, Eigen::MatrixXd &dZ1)
-{
-  const PetscInt N = N_;
-  PetscFunctionBeginUser;
-  PetscCall(PetscLogEventBegin(ev_tangent, 0, 0, 0, 0));
-  PetscCheck(ExactJacobian(), comm_, PETSC_ERR_SUP,
-             "shooting: exact tangents need the dense theta back end (N = %" PetscInt_FMT " > -theta_dense_max) and -shoot_exact_jacobian",
-             N);
-  PetscCall(EnsureTrajectory(x));
-  if (T_setup_ != trT_) { // a test or a difference product moved the step size since
-    PetscCall(ti_->SetUp(*model_, trT_ / steps));
-    T_setup_ = trT_;
-    ++setups_;
-    for (auto &f : trF_) f.valid = false;
-  }
-  const PetscInt nc = model_->contacts.Size();
-  if (!trC_ready_) {
-    // The h-sources depend on the base flow only: once per stored trajectory.
-    trC_.resize(N, steps);
-    for (auto &f : trF_) f.valid = false;
-    for (PetscInt i = 0; i < steps; ++i) {
-      sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sve_ = trU_.col(i);
-      if (nc) sr_ = trR_.col(i);
-      else sr_.resize(0);
-      PetscCall(ti_->StepTangentSource(sve_, sdUi_, sdUn_, sr_, sc_));
-      trC_.col(i) = sc_;
-    }
-    trC_ready_ = true;
-  }
-  Eigen::MatrixXd    dU = dZ0.topRows(N), ddU = dZ0.bottomRows(N);
-  Eigen::RowVectorXd dh = dT / (PetscReal)steps;
-  ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
-  // One-column products (GMRES) would refactorise each step's closed-point system every time:
-  // keep the factors along this flow while they fit in -shoot_tangent_cache_mb.
-  const double factor_mb = 8.0 * 9.0 * nc * nc * steps / 1048576.0;
-  const bool   cache     = nc > 0 && factor_mb <= tangent_cache_mb;
-  if (cache && (PetscInt)trF_.size() != steps) trF_.assign(steps, {});
-  for (PetscInt i = 0; i < steps; ++i) {
-    sd.factor = cache ? &trF_[i] : nullptr;
-    sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sc_ = trC_.col(i);
-    if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
-    else sr_.resize(0), svs_.resize(0), sve_.resize(0);
-    PetscCall(ti_->StepTangent(sr_, sve_, sd, dh, dU, ddU));
-  }
-  dZ1.resize(2 * N, dZ0.cols());
-  dZ1.topRows(N)    = dU;
-  dZ1.bottomRows(N) = ddU;
-  ++evaluations_, ++tangents_;
-  PetscCall(PetscLogEventEnd(ev_tangent, 0, 0, 0, 0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::BuildDenseJacobian(Vec x)
-{
-  const PetscInt n2 = 2 * N_;
-  PetscFunctionBeginUser;
-  Eigen::MatrixXd    E = Eigen::MatrixXd::Identity(n2, n2 + 1), D;
-  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(n2 + 1);
-  dT[n2] = 1.0;
-  PetscCall(TangentFlow(x, E, dT, D));
-  Jd_.setZero(n2 + 1, n2 + 1);
-  Jd_.topRows(n2) = D;
-  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
-  if (anchored_) {
-    Eigen::VectorXd g(n2);
-    PetscCall(Full(GaU_, g.head(N_)));
-    PetscCall(Full(GadU_, g.tail(N_)));
-    Jd_.row(n2).head(n2) = g.transpose();
-  }
-  jlu_.compute(Jd_);
-  PetscCall(VecCopy(x, jx_));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
-{
-  const PetscInt n2 = 2 * N_;
-  PetscFunctionBeginUser;
-  if (Mlin_.rows() != n2) {
-    // Weakly damped structural modes put many multipliers near the unit circle, spread round it:
-    // unpreconditioned GMRES needs about one iteration each. They are nearly those of the steady
-    // sliding linearisation, whose monodromy costs one step tangent (2N columns at the equilibrium
-    // reactions: every point closed and sliding, slip direction against V_c) and log2(N_s) squarings.
-    Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N_, n2), ddU = Eigen::MatrixXd::Zero(N_, n2);
-    dU.leftCols(N_).setIdentity();
-    ddU.rightCols(N_).setIdentity();
-    const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(r_init_.size());
-    PetscCall(ti_->StepTangent(r_init_, v0, dU, ddU));
-    Eigen::MatrixXd S(n2, n2), P = Eigen::MatrixXd::Identity(n2, n2), tmp(n2, n2);
-    S.topRows(N_)    = dU;
-    S.bottomRows(N_) = ddU;
-    for (PetscInt e = steps; e > 0; e >>= 1) {
-      if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
-      if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
-    }
-    Mlin_.swap(P);
-  }
-  // The period column is exact (one tangent integration of one column); the border is the anchor's.
-  Eigen::MatrixXd    dT1;
-  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Ones(1);
-  PetscCall(TangentFlow(x, Eigen::MatrixXd::Zero(n2, 1), dT, dT1));
-  Jd_.setZero(n2 + 1, n2 + 1);
-  Jd_.topLeftCorner(n2, n2) = Mlin_;
-  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
-  Jd_.col(n2).head(n2) = dT1.col(0);
-  if (anchored_) {
-    Eigen::VectorXd g(n2);
-    PetscCall(Full(GaU_, g.head(N_)));
-    PetscCall(Full(GadU_, g.tail(N_)));
-    Jd_.row(n2).head(n2) = g.transpose();
-  } else Jd_(n2, n2) = 1.0; // no phase row yet: keep the preconditioner regular
-  jlu_.compute(Jd_);
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
-{
-  PetscInt  N, lo, hi;
-  PetscReal nU, ndU;
-  PetscMPIInt rank;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
-  PetscCall(VecGetSize(U0, &N));
-  PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
-  PetscCall(VecNorm(U0, NORM_2, &nU));
-  PetscCall(VecNorm(dU0, NORM_2, &ndU));
-  VecH bU, bdU;
-  PetscCall(VecDuplicate(U0, bU.out()));
-  PetscCall(VecDuplicate(U0, bdU.out()));
-  Mono.setZero(2 * N, 2 * N);
-  AllGather gather;
-  PetscCall(gather.SetUp(U0));
-  Eigen::VectorXd base(2 * N), col(2 * N);
-  PetscCall(SetUpPhases(U0, dU0, T, true));
-  for (size_t k = 0; k < phase_s_.size(); ++k) {
-    PetscCall(PhaseStart(U0, dU0, phase_s_[k], bU, bdU));
-    PetscCall(Flow(bU, bdU, T, U1_, dU1_));
-    PetscCall(gather(U1_, base.head(N)));
-    PetscCall(gather(dU1_, base.tail(N)));
-    for (PetscInt j = 0; j < 2 * N; ++j) {
-      const bool      disp  = j < N;
-      const PetscInt  i     = disp ? j : j - N;
-      // Forward (+delta) steps: a closed point pushed into the surface is projected back at once.
-      const PetscReal delta = fd_step * (disp ? (nU > 0 ? nU : 1.0) : (ndU > 0 ? ndU : 1.0));
-      PetscCall(VecCopy(bU, U_));
-      PetscCall(VecCopy(bdU, dU_));
-      if (i >= lo && i < hi) PetscCall(VecSetValue(disp ? U_ : dU_, i, delta, ADD_VALUES));
-      PetscCall(VecAssemblyBegin(disp ? U_ : dU_));
-      PetscCall(VecAssemblyEnd(disp ? U_ : dU_));
-      PetscCall(Flow(U_, dU_, T, U1_, dU1_));
-      PetscCall(gather(U1_, col.head(N)));
-      PetscCall(gather(dU1_, col.tail(N)));
-      Mono.col(j) += phase_w_[k] * (col - base) / delta;
-    }
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
-{
-  PetscInt        N;
-  Eigen::VectorXd r, vloc;
-  StepInfo        info;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetSize(U0, &N));
-  PetscCheck(ti_->Dense(), comm_, PETSC_ERR_SUP, "the exact monodromy needs the dense theta back end (N <= -theta_dense_max)");
-  PetscCall(SetUpPhases(U0, dU0, T, true));
-  Mono.setZero(2 * N, 2 * N);
-  Eigen::MatrixXd dU, ddU;
-  for (size_t k = 0; k < phase_s_.size(); ++k) {
-    PetscCall(PhaseStart(U0, dU0, phase_s_[k], U1_, dU1_));
-    r = r_init_;
-    dU.setZero(N, 2 * N), ddU.setZero(N, 2 * N);
-    dU.leftCols(N).setIdentity();
-    ddU.rightCols(N).setIdentity();
-    for (PetscInt i = 0; i < steps; ++i) {
-      PetscCall(ti_->Step(U1_, dU1_, r, &info));
-      if (r.size()) PetscCall(ti_->Local(dU1_, vloc));
-      PetscCall(ti_->StepTangent(r, vloc, dU, ddU));
-    }
-    Mono.topRows(N) += phase_w_[k] * dU;
-    Mono.bottomRows(N) += phase_w_[k] * ddU;
-    ++evaluations_;
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T)
-{
-  Eigen::VectorXd r = r_init_;
-  StepInfo        info;
-  PetscFunctionBeginUser;
-  if (T != T_setup_) {
-    PetscCall(ti_->SetUp(*model_, T / steps));
-    T_setup_ = T;
-    ++setups_;
-  }
-  if (!shiftU_) {
-    PetscCall(VecDuplicate(U0, shiftU_.out()));
-    PetscCall(VecDuplicate(U0, shiftdU_.out()));
-  }
-  PetscCall(VecCopy(U0, shiftU_));
-  PetscCall(VecCopy(dU0, shiftdU_));
-  PetscCall(ti_->Step(shiftU_, shiftdU_, r, &info));
-  PetscCall(VecAXPY(shiftU_, -1.0, U0));
-  PetscCall(VecAXPY(shiftdU_, -1.0, dU0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::PhaseStart(Vec U0, Vec dU0, PetscReal s, Vec U, Vec dU)
-{
-  PetscFunctionBeginUser;
-  PetscCall(VecWAXPY(U, s, shiftU_, U0));
-  PetscCall(VecWAXPY(dU, s, shiftdU_, dU0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive_default)
-{
-  PetscInt K = floquet_phases;
-  PetscFunctionBeginUser;
-  PetscCall(ShiftAlongOrbit(U0, dU0, T));
-  phase_s_.clear(), phase_w_.clear();
-  if (K == PETSC_DECIDE) K = adaptive_default ? 0 : 1;
-  if (K == 1) {
-    phase_s_ = {0.0}, phase_w_ = {1.0};
-    PetscFunctionReturn(0);
-  }
-  if (K >= 2) { // midpoint rule
-    for (PetscInt k = 0; k < K; ++k) phase_s_.push_back((k + 0.5) / K), phase_w_.push_back(1.0 / K);
-    PetscFunctionReturn(0);
-  }
-  // K = 0: the phase s in [0, 1] moves every status change of the flow by one step. Between the
-  // values of s where one moves, the flow is smooth in s: find them by bisection on the list of
-  // transitions, then 3-point Gauss-Legendre on each smooth piece.
-  // A probe is the flow from Z0 + s d with its transitions and, over the steps it ran, its states
-  // and the reactions entering each step. Two probes a < b whose transitions agree before step j0
-  // have states at j0 that are smooth in s on [a, b]: once b - a <= -shoot_floquet_bisect_interp
-  // (W), the flow from the midpoint starts at j0 from the mean of theirs and stops after the last
-  // differing transition, so a bisection level costs the steps between the two, not a period. All
-  // deeper probes are then linear interpolants along the first such [a, b]: state error O(W^2).
-  // Measured (3-DOF cases, planar and rectilinear, 500-4000 steps): the same pieces as flows from
-  // t = 0 at W = 1/32 and 1/16; at W = 1/4 a stick onset moved by 7.6e-6 of a step.
-  struct Probe {
-    std::vector<PetscInt> sig;
-    PetscInt              lo = 0; // column k of Z (this rank's rows of U, dU) and R (reaction entering the step) is step lo + k
-    Eigen::MatrixXd       Z, R;
-    std::vector<int>      st_lo; // statuses entering step lo (R's first column may be a mean, not a status)
-  };
-  const PetscInt   nc = model_->contacts.Size();
-  VecH             sU, sdU;
-  StepInfo         info;
-  std::vector<int> st0, prev, cur;
-  for (VecH *v : {&sU, &sdU}) PetscCall(VecDuplicate(U0, v->out()));
-  PetscInt lo, hi;
-  PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
-  const PetscInt nl = hi - lo; // states are kept by rows, on their rank: no gathers per step
-  auto           set_state = [&](const Eigen::VectorXd &z) -> PetscErrorCode {
-    PetscScalar *u, *du;
-    PetscFunctionBeginUser;
-    PetscCall(VecGetArray(sU, &u));
-    PetscCall(VecGetArray(sdU, &du));
-    for (PetscInt i = 0; i < nl; ++i) u[i] = z[i], du[i] = z[nl + i];
-    PetscCall(VecRestoreArray(sdU, &du));
-    PetscCall(VecRestoreArray(sU, &u));
-    PetscFunctionReturn(0);
-  };
-  auto get_state = [&](Eigen::Ref<Eigen::VectorXd> z) -> PetscErrorCode {
-    const PetscScalar *u, *du;
-    PetscFunctionBeginUser;
-    PetscCall(VecGetArrayRead(sU, &u));
-    PetscCall(VecGetArrayRead(sdU, &du));
-    for (PetscInt i = 0; i < nl; ++i) z[i] = PetscRealPart(u[i]), z[nl + i] = PetscRealPart(du[i]);
-    PetscCall(VecRestoreArrayRead(sdU, &du));
-    PetscCall(VecRestoreArrayRead(sU, &u));
-    PetscFunctionReturn(0);
-  };
-  // Steps [j0, j1) from state z before step j0, warm start r0, statuses st before it; transitions appended to P.sig.
-  auto run = [&](Probe &P, PetscInt j0, PetscInt j1, const Eigen::VectorXd &z, const Eigen::VectorXd &r0,
-                 const std::vector<int> &st) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    P.lo = j0;
-    P.Z.resize(2 * nl, j1 - j0 + 1), P.R.resize(3 * nc, j1 - j0 + 1);
-    P.Z.col(0) = z, P.R.col(0) = r0, P.st_lo = st;
-    PetscCall(set_state(z));
-    Eigen::VectorXd r = r0;
-    prev              = st;
-    for (PetscInt i = j0; i < j1; ++i) {
-      PetscCall(ti_->Step(sU, sdU, r, &info));
-      PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
-                 "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
-      PetscCall(get_state(P.Z.col(i - j0 + 1)));
-      P.R.col(i - j0 + 1) = r;
-      ti_->Contact().Status(r, cur);
-      for (size_t c = 0; c < cur.size(); ++c)
-        if (cur[c] != prev[c]) P.sig.insert(P.sig.end(), {i, (PetscInt)c, (PetscInt)cur[c]});
-      std::swap(prev, cur);
-    }
-    if (j1 - j0 >= steps) ++evaluations_;
-    else partial_steps_ += j1 - j0;
-    PetscFunctionReturn(0);
-  };
-  auto exact = [&](Probe &P, PetscReal s, PetscInt j1) -> PetscErrorCode {
-    Eigen::VectorXd z(2 * nl);
-    PetscFunctionBeginUser;
-    PetscCall(PhaseStart(U0, dU0, s, sU, sdU));
-    PetscCall(get_state(z));
-    P.sig.clear();
-    PetscCall(run(P, 0, j1, z, r_init_, st0));
-    PetscFunctionReturn(0);
-  };
-  ti_->Contact().Status(r_init_, st0); // ShiftAlongOrbit has set the integrator up at T
-  const PetscInt     G = 4;
-  std::vector<Probe> grid(G + 1);
-  bool               have0 = false;
-  if (tr_valid_ && trT_ == T && trU_.cols() == steps + 1 && trR_.rows() == 3 * nc) {
-    // s = 0 is the flow of the last residual evaluation when that was at (Z0, T): reuse it.
-    PetscCall(Pack(U0, dU0, T, xp_));
-    PetscBool same;
-    PetscCall(VecEqual(xp_, trx_, &same));
-    if (same) {
-      Probe &P = grid[0];
-      P.lo     = 0;
-      P.Z.resize(2 * nl, steps + 1), P.R.resize(3 * nc, steps + 1);
-      P.Z.topRows(nl) = trU_.middleRows(lo, nl), P.Z.bottomRows(nl) = trdU_.middleRows(lo, nl);
-      P.R.col(0)                = r_init_;
-      if (nc) P.R.rightCols(steps) = trR_;
-      P.st_lo = prev = st0;
-      for (PetscInt i = 0; i < steps; ++i) {
-        ti_->Contact().Status(P.R.col(i + 1), cur);
-        for (size_t c = 0; c < cur.size(); ++c)
-          if (cur[c] != prev[c]) P.sig.insert(P.sig.end(), {i, (PetscInt)c, (PetscInt)cur[c]});
-        std::swap(prev, cur);
-      }
-      have0 = true;
-    }
-  }
-  for (PetscInt j = have0 ? 1 : 0; j <= G; ++j) PetscCall(exact(grid[j], (PetscReal)j / G, steps));
-  std::vector<PetscReal> breaks;
-  std::function<PetscErrorCode(PetscReal, PetscReal, const Probe &, const Probe &)> bisect;
-  bisect = [&](PetscReal a, PetscReal b, const Probe &pa, const Probe &pb) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    if (b - a < 1e-5 || breaks.size() > 64) {
-      breaks.push_back(0.5 * (a + b));
-      PetscFunctionReturn(0);
-    }
-    const std::vector<PetscInt> &sa = pa.sig, &sb = pb.sig;
-    const PetscReal              m  = 0.5 * (a + b);
-    // sa and sb agree before step `first` and after their last differing transition (step `last`).
-    size_t ka = sa.size(), kb = sb.size(), p = 0;
-    while (ka >= 3 && kb >= 3 && std::equal(sa.begin() + ka - 3, sa.begin() + ka, sb.begin() + kb - 3)) ka -= 3, kb -= 3;
-    while (p + 3 <= ka && p + 3 <= kb && std::equal(sa.begin() + p, sa.begin() + p + 3, sb.begin() + p)) p += 3;
-    PetscInt last = -1, first = steps;
-    for (size_t j = p; j < ka; j += 3) last = std::max(last, sa[j]), first = std::min(first, sa[j]);
-    for (size_t j = p; j < kb; j += 3) last = std::max(last, sb[j]), first = std::min(first, sb[j]);
-    Probe      pm;
-    const auto has = [](const Probe &q, PetscInt j) { return j >= q.lo && j < q.lo + q.Z.cols(); };
-    if (b - a <= floquet_bisect_interp && has(pa, first) && has(pb, first)) {
-      for (size_t j = 0; j < p; j += 3)
-        if (sa[j] < first) pm.sig.insert(pm.sig.end(), sa.begin() + j, sa.begin() + j + 3);
-      const Eigen::VectorXd z  = 0.5 * (pa.Z.col(first - pa.lo) + pb.Z.col(first - pb.lo));
-      const Eigen::VectorXd r0 = pa.R.col(first - pa.lo); // a warm start only
-      std::vector<int>      st = pa.st_lo;
-      if (first > pa.lo) ti_->Contact().Status(r0, st);
-      PetscCall(run(pm, first, last + 1, z, r0, st));
-    } else PetscCall(exact(pm, m, last + 1));
-    // The flow from m takes the common tail.
-    for (size_t j = 0; j < sa.size(); j += 3)
-      if (sa[j] > last) pm.sig.insert(pm.sig.end(), sa.begin() + j, sa.begin() + j + 3);
-    if (pm.sig != sa) PetscCall(bisect(a, m, pa, pm));
-    if (pm.sig != sb) PetscCall(bisect(m, b, pm, pb));
-    PetscFunctionReturn(0);
-  };
-  for (PetscInt j = 0; j < G; ++j)
-    if (grid[j].sig != grid[j + 1].sig) PetscCall(bisect((PetscReal)j / G, (PetscReal)(j + 1) / G, grid[j], grid[j + 1]));
-  if (breaks.size() > 64) {
-    // Too many status changes to resolve one by one (large contact sets): 64 midpoints.
-    PetscCall(PetscInfo(nullptr, "%zu status changes move with the phase: midpoint rule over 64 phases\n", breaks.size()));
-    for (PetscInt k = 0; k < 64; ++k) phase_s_.push_back((k + 0.5) / 64), phase_w_.push_back(1.0 / 64);
-    PetscFunctionReturn(0);
-  }
-  std::sort(breaks.begin(), breaks.end());
-  for (PetscReal b : breaks) PetscCall(PetscInfo(nullptr, "shooting: a status change moves to another step at phase s = %.9f\n", (double)b));
-  std::vector<PetscReal> ends{0.0};
-  for (PetscReal b : breaks) ends.push_back(b);
-  ends.push_back(1.0);
-  const PetscReal x[3] = {-std::sqrt(0.6), 0.0, std::sqrt(0.6)}, w[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
-  for (size_t p = 0; p + 1 < ends.size(); ++p) {
-    const PetscReal a = ends[p], b = ends[p + 1];
-    if (b - a < 1e-8) continue;
-    for (int q = 0; q < 3; ++q) phase_s_.push_back(0.5 * (a + b) + 0.5 * (b - a) * x[q]), phase_w_.push_back(0.5 * (b - a) * w[q]);
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult)
-{
-  PetscInt N, nconv;
-  MatH     A;
-  EPSH     eps;
-  VecH     z;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetSize(U0, &N));
-  for (VecH *v : {&mono_U0_, &mono_dU0_}) PetscCall(VecDuplicate(U0, v->out()));
-  PetscCall(VecCopy(U0, mono_U0_));
-  PetscCall(VecCopy(dU0, mono_dU0_));
-  mono_T_ = T;
-  // Starting points within one step of the orbit, and their flows (the bases of the differences).
-  PetscCall(SetUpPhases(U0, dU0, T, false));
-  const size_t K = phase_s_.size();
-  mono_start_.clear(), mono_base_.clear();
-  mono_start_.resize(K), mono_base_.resize(K);
-  for (size_t k = 0; k < K; ++k) {
-    for (VecH *v : {&mono_start_[k].first, &mono_start_[k].second, &mono_base_[k].first, &mono_base_[k].second})
-      PetscCall(VecDuplicate(U0, v->out()));
-    PetscCall(PhaseStart(U0, dU0, phase_s_[k], mono_start_[k].first, mono_start_[k].second));
-    PetscCall(Flow(mono_start_[k].first, mono_start_[k].second, T, mono_base_[k].first, mono_base_[k].second));
-  }
-  // One phase on the dense back end: exact tangent products along the flow from Z0.
-  mono_exact_ = floquet_exact && ExactJacobian() && K == 1 && phase_s_[0] == 0;
-  if (mono_exact_) {
-    if (!mono_x_) PetscCall(CreateState(mono_x_.out()));
-    PetscCall(Pack(U0, dU0, T, mono_x_));
-  }
-  if (mono_exact_ && floquet_block > 0) {
-    PetscCall(FloquetBlockArnoldi(mult));
-    PetscFunctionReturn(0);
-  }
-  // Z-space vectors: the shooting packing without T.
-  PetscCall(VecCreateMPI(comm_, 2 * nloc_, PETSC_DETERMINE, z.out()));
-  PetscCall(MatCreateShell(comm_, 2 * nloc_, 2 * nloc_, 2 * N, 2 * N, this, A.out()));
-  PetscCall(MatShellSetOperation(A, MATOP_MULT, (void (*)(void))ShootingCallbacks::MonodromyMult));
-  PetscCall(EPSCreate(comm_, eps.out()));
-  PetscCall(EPSSetOptionsPrefix(eps, "shoot_floquet_"));
-  PetscCall(EPSSetOperators(eps, A, nullptr));
-  PetscCall(EPSSetProblemType(eps, EPS_NHEP));
-  PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
-  PetscCall(EPSSetWhichEigenpairs(eps, EPS_LARGEST_MAGNITUDE));
-  PetscCall(EPSSetDimensions(eps, PetscMin(floquet_nev, 2 * N - 2), PETSC_DEFAULT, PETSC_DEFAULT));
-  // Difference products carry ~fd_step relative noise: ask for no more than that allows.
-  PetscCall(EPSSetTolerances(eps, mono_exact_ ? 1e-8 : 1e-6, 200));
-  PetscCall(EPSSetFromOptions(eps));
-  PetscCall(EPSSolve(eps));
-  PetscCall(EPSGetConverged(eps, &nconv));
-  mult.clear();
-  for (PetscInt i = 0; i < nconv; ++i) {
-    PetscScalar kr, ki;
-    PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
-    mult.emplace_back(PetscRealPart(kr), PetscRealPart(ki));
-  }
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::FloquetBlockArnoldi(std::vector<std::complex<PetscReal>> &mult)
-{
-  using Eigen::Index;
-  using Eigen::MatrixXd;
-  const Index n = 2 * N_, b = floquet_block;
-  const Index nev = std::min<Index>(floquet_nev, n - 2);
-  const bool  mon = floquet_monitor;
-  PetscFunctionBeginUser;
-  if (n <= 4 * b) {
-    // A few blocks would span the space: the whole monodromy in one integration of n columns.
-    MatrixXd Mono;
-    PetscCall(TangentFlow(mono_x_, MatrixXd::Identity(n, n), Eigen::RowVectorXd::Zero(n), Mono));
-    Eigen::EigenSolver<MatrixXd> es(Mono, false);
-    mult.clear();
-    for (Index i = 0; i < n; ++i) mult.push_back(es.eigenvalues()(i));
-    std::sort(mult.begin(), mult.end(), [](auto a, auto c) { return std::abs(a) > std::abs(c); });
-    mult.resize(nev);
-    floquet_products_ = 1;
-    PetscFunctionReturn(0);
-  }
-  // Blocks of the Krylov basis: up to -shoot_floquet_max_dim columns, and never past the space.
-  const Index mmax = std::max<Index>(1, std::min<Index>(floquet_max_dim / b, n / b - 1));
-  MatrixXd    V(n, (mmax + 1) * b), H = MatrixXd::Zero((mmax + 1) * b, mmax * b), W, C;
-  {
-    // The same pseudo-random start on every rank (every rank holds the whole basis).
-    std::mt19937                     gen(2027);
-    std::normal_distribution<double> nd;
-    MatrixXd                         R0(n, b);
-    for (Index j = 0; j < b; ++j)
-      for (Index i = 0; i < n; ++i) R0(i, j) = nd(gen);
-    Eigen::HouseholderQR<MatrixXd> qr(R0);
-    V.leftCols(b) = qr.householderQ() * MatrixXd::Identity(n, b);
-  }
-  const Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(b);
-  const PetscReal          w  = 2 * PETSC_PI / mono_T_;
-  std::vector<std::complex<PetscReal>> ritz;
-  PetscInt                             used = 0;
-  for (Index j = 0; j < mmax; ++j) {
-    // On D M D^-1, D = diag(w I, I), w = 2 pi / T: same multipliers, but displacement and velocity
-    // columns of one size (M itself mixes them by factors of w ~ 1e3-1e5), which is far closer to
-    // normal, and Arnoldi's residuals then mean what they say.
-    C = V.middleCols(j * b, b);
-    C.topRows(N_) /= w;
-    PetscCall(TangentFlow(mono_x_, C, dT, W));
-    W.topRows(N_) *= w;
-    ++used;
-    const Index k = (j + 1) * b;
-    // Block Gram-Schmidt, twice (one pass loses orthogonality on the clustered multipliers).
-    for (int pass = 0; pass < 2; ++pass) {
-      C.noalias() = V.leftCols(k).transpose() * W;
-      W.noalias() -= V.leftCols(k) * C;
-      H.block(0, j * b, k, b) += C;
-    }
-    Eigen::HouseholderQR<MatrixXd> qr(W);
-    const MatrixXd                 R = qr.matrixQR().topRows(b).triangularView<Eigen::Upper>();
-    V.middleCols(k, b)               = qr.householderQ() * MatrixXd::Identity(n, b);
-    H.block(k, j * b, b, b)          = R;
-    // Ritz values of the block Hessenberg matrix and their residuals |R y_last| (y of unit norm).
-    Eigen::EigenSolver<MatrixXd> es(H.topLeftCorner(k, k), true);
-    std::vector<Index>           order(k);
-    for (Index i = 0; i < k; ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](Index a, Index c) { return std::abs(es.eigenvalues()(a)) > std::abs(es.eigenvalues()(c)); });
-    ritz.clear();
-    PetscReal worst = 0;
-    for (Index i = 0; i < std::min(nev, k); ++i) {
-      const Eigen::VectorXcd y   = es.eigenvectors().col(order[i]).normalized();
-      const std::complex<PetscReal> th = es.eigenvalues()(order[i]);
-      const PetscReal res = (R.cast<std::complex<PetscReal>>() * y.tail(b)).norm() / std::max(std::abs(th), PETSC_SMALL);
-      worst               = std::max(worst, res);
-      ritz.push_back(th);
-    }
-    if (mon)
-      PetscCall(PetscPrintf(comm_, "  Floquet block Arnoldi: %" PetscInt_FMT " x %" PetscInt_FMT " columns, largest |L| = %.6f, worst relative residual of the %" PetscInt_FMT " largest %.2e\n",
-                            (PetscInt)(j + 1), (PetscInt)b, ritz.empty() ? 0.0 : (double)std::abs(ritz[0]), (PetscInt)nev, (double)worst));
-    if (k >= nev && worst <= floquet_tol) break;
-    // An invariant subspace: the Ritz values are exact.
-    if (R.diagonal().cwiseAbs().minCoeff() <= 1e-13 * H.topLeftCorner(k, k).norm()) break;
-    if (j + 1 == mmax) {
-      char msg[200];
-      std::snprintf(msg, sizeof msg, "Floquet block Arnoldi: the %d largest multipliers reached a relative residual of %.1e, not %.1e, "
-                    "in %d columns (-shoot_floquet_max_dim)", (int)nev, (double)worst, (double)floquet_tol, (int)k);
-      PetscCall(PetscPrintf(comm_, "shooting: warning: %s\n", msg));
-    }
-  }
-  floquet_products_ = used;
-  mult = ritz;
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res)
 {
   PetscInt        N;
@@ -1354,11 +265,7 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
       }
     }
   } else {
-  if (T != T_setup_) {
-    PetscCall(ti_->SetUp(*model_, T / steps));
-    T_setup_ = T;
-    ++setups_;
-  }
+  PetscCall(SetUpAt(T));
   VecScatter sc;
   Vec        z;
   PetscCall(VecScatterCreateToZero(U0, &sc, &z));
@@ -1403,11 +310,8 @@ PetscErrorCode Shooting::Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res
 PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
                                ShootingResult &res)
 {
-  VecH                x;
-  SNESConvergedReason reason;
-  PetscMPIInt         rank;
+  VecH x;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
@@ -1417,255 +321,19 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(ti_->SetUp(*model_, T0 / steps));
   T_setup_ = T0;
   ++setups_;
-  jdense_  = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
-  jlinear_ = ExactJacobian() && !jdense_ && linear_pc && 2 * N_ <= linear_pc_max;
-  {
-    // GMRES on tangent products (one period integration each): far from the cycle Newton's step
-    // needs no 1e-6 linear solve, so the Krylov tolerance follows the residual's decrease
-    // (Eisenstat-Walker). On the 542-DOF pad: 58 products instead of 142 for the same cycle.
-    // The dense Jacobian's LU solves exactly in one iteration: nothing to save there.
-    PetscBool set = PETSC_FALSE;
-    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_ksp_ew", &set));
-    if (!set) {
-      PetscCall(SNESKSPSetUseEW(snes_, (PetscBool)(ew && !jdense_ && ExactJacobian())));
-      // PETSc's default rtol_max 0.9 lets a step after a residual increase (status changes make
-      // the period map non-smooth) stop after 2 GMRES iterations, and Newton then crawls: cap at 0.1.
-      PetscCall(SNESKSPSetParametersEW(snes_, PETSC_DEFAULT, 0.1, 0.1, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
-    }
-  }
-  if (!linesearch_given_) {
-    // Deflated, the residual's norm has no minimum at Z_e any more: globalise on it.
-    SNESLineSearch ls;
-    PetscCall(SNESGetLineSearch(snes_, &ls));
-    PetscCall(SNESLineSearchSetType(ls, deflate_power > 0 ? SNESLINESEARCHBT : SNESLINESEARCHBASIC));
-  }
-  Mlin_.resize(0, 0);
-  {
-    KSP ksp;
-    PC  pc;
-    PetscCall(SNESGetKSP(snes_, &ksp));
-    PetscCall(KSPGetPC(ksp, &pc));
-    if (jdense_) {
-      // Exact dense Jacobian, factorised: its LU preconditions GMRES, which then stops at once.
-      PetscCall(PCSetType(pc, PCSHELL));
-      PetscCall(PCShellSetContext(pc, this));
-      PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
-      PetscCall(PCShellSetName(pc, "LU of the exact bordered Jacobian"));
-      PetscCall(KSPSetTolerances(ksp, 1e-12, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
-    } else if (jlinear_) {
-      if (!ksp_default_ctx_) PetscCall(KSPConvergedDefaultCreate(&ksp_default_ctx_));
-      PetscCall(KSPSetConvergenceTest(ksp, ShootingCallbacks::KrylovConverged, this, nullptr));
-      PetscCall(PCSetType(pc, PCSHELL));
-      PetscCall(PCShellSetContext(pc, this));
-      PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
-      PetscCall(PCShellSetName(pc, "LU of the bordered Jacobian of the sliding linearisation (-shoot_linear_pc)"));
-    } else {
-      PetscBool shell;
-      PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
-      if (shell) PetscCall(PCSetType(pc, PCNONE));
-      if (!ExactJacobian() && exact_jacobian)
-        PetscCall(PetscInfo(nullptr, "shooting: N = %" PetscInt_FMT " > -theta_dense_max: finite-difference products\n", N_));
-    }
-  }
-  PetscCall(VecSet(jx_, PETSC_INFINITY));
-  anchored_    = false;
-  hist_res_.clear();
-  hist_T_.clear();
-  best_res_ = kInf;
-  fail_reason_.clear();
-  criterion_iterate_ = -1;
+  PetscCall(SetUpNewton());
   PetscCall(CreateState(x.out()));
-  if (pre_periods > 0) {
-    PetscCall(PetscLogEventBegin(ev_pre, 0, 0, 0, 0));
-    // Where the cycle's shape is far from the unstable mode's (many contacts with separation and
-    // stick), periods of the flow bring the start into the attracting cycle's neighbourhood. After
-    // each period the return distance is read with the period corrected to first order along the
-    // end point's vector field G: dt = -G.(Z1 - Z)/|G|^2, e = |Z1 - Z + dt G| / |Z1| (the residual
-    // Newton would see at T + dt). It stops once e < -shoot_pre_tol and starts Newton at T + dt.
-    VecH            U, dU;
-    Eigen::VectorXd r;
-    PetscBool       mon = PETSC_FALSE;
-    PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
-    PetscCall(VecDuplicate(U0, U.out()));
-    PetscCall(VecDuplicate(dU0, dU.out()));
-    PetscCall(VecCopy(U0, U));
-    PetscCall(VecCopy(dU0, dU));
-    PetscReal T = T0, e = kInf;
-    PetscInt  k = 0;
-    while (k < pre_periods) {
-      PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
-      ++k;
-      PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
-      PetscScalar a1, a2, b1, b2;
-      PetscReal   n1, n2;
-      PetscCall(VecWAXPY(wU_, -1.0, U, U1_));
-      PetscCall(VecWAXPY(wdU_, -1.0, dU, dU1_));
-      PetscCall(VecDot(wU_, gU_, &a1));
-      PetscCall(VecDot(wdU_, gdU_, &a2));
-      PetscCall(VecDot(gU_, gU_, &b1));
-      PetscCall(VecDot(gdU_, gdU_, &b2));
-      const PetscReal dt = PetscRealPart(b1 + b2) > 0 ? -PetscRealPart(a1 + a2) / PetscRealPart(b1 + b2) : 0.0;
-      PetscCall(VecAXPY(wU_, dt, gU_));
-      PetscCall(VecAXPY(wdU_, dt, gdU_));
-      PetscCall(VecNorm(wU_, NORM_2, &n1));
-      PetscCall(VecNorm(wdU_, NORM_2, &n2));
-      const PetscReal d = std::hypot(n1, n2);
-      PetscCall(VecNorm(U1_, NORM_2, &n1));
-      PetscCall(VecNorm(dU1_, NORM_2, &n2));
-      e = d / std::hypot(n1, n2);
-      PetscCall(VecCopy(U1_, U));
-      PetscCall(VecCopy(dU1_, dU));
-      if (mon)
-        PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
-                              (double)(T + dt)));
-      // The corrected period is used from here on only while it stays near T0: far from the cycle
-      // the first-order correction can be large and meaningless.
-      if (std::abs(dt) < 0.05 * T0) T += dt;
-      if (e < pre_tol) break;
-    }
-    PetscCall(PetscPrintf(comm_,
-                          "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
-                          ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
-                          k, pre_periods, (double)pre_tol, (double)e, (double)T));
-    pre_done_ = k, pre_T_ = T;
-    PetscCall(PetscLogEventEnd(ev_pre, 0, 0, 0, 0));
-    PetscCall(Pack(U, dU, T, x));
-  } else PetscCall(Pack(U0, dU0, T0, x));
-  PetscCall(VecCopy(x, best_x_));
-  defl_m_ = 0;
-  PetscCall(Unpack(x, wU_, wdU_, nullptr));
-  PetscCall(EquilibriumDistance(wU_, wdU_, &dist0_));
-  VecH f;
-  PetscCall(VecDuplicate(x, f.out()));
-  PetscCall(SNESSetFunction(snes_, f, ShootingCallbacks::Function, this));
-  PetscCall(SNESSetJacobian(snes_, J_, J_, ShootingCallbacks::Jacobian, this));
-  PetscCall(SNESSetApplicationContext(snes_, this));
-  PetscCall(SNESSetUpdate(snes_, ShootingCallbacks::Update));
-  PetscCall(SNESSetConvergenceTest(snes_, ShootingCallbacks::Converged, this, nullptr));
-  PetscCall(SNESSolve(snes_, nullptr, x));
-  PetscCall(SNESGetConvergedReason(snes_, &reason));
-  PetscCall(SNESGetIterationNumber(snes_, &res.corrections));
-  res.converged  = reason > 0;
-  res.iterations = res.converged ? criterion_iterate_ : res.corrections;
-  if (!res.converged && fail_reason_.empty()) {
-    switch (reason) {
-    case SNES_DIVERGED_LINE_SEARCH: fail_reason_ = "line search failure"; break;
-    case SNES_DIVERGED_LINEAR_SOLVE: {
-      KSP                ksp;
-      KSPConvergedReason kr;
-      PetscInt           kit;
-      PetscCall(SNESGetKSP(snes_, &ksp));
-      PetscCall(KSPGetConvergedReason(ksp, &kr));
-      PetscCall(KSPGetIterationNumber(ksp, &kit));
-      fail_reason_ = std::string("Krylov failure on the bordered system: ") + KSPConvergedReasons[kr] + " after " + std::to_string(kit) +
-                     " iterations (-shoot_ksp_max_it, -shoot_ksp_rtol, -shoot_ksp_gmres_restart)";
-      break;
-    }
-    case SNES_DIVERGED_FUNCTION_DOMAIN: fail_reason_ = "the period left (T0/2, 2 T0)"; break;
-    default: fail_reason_ = SNESConvergedReasons[reason]; break;
-    }
-  }
-  res.reason           = res.converged ? "converged" : fail_reason_;
-  res.residual_history = hist_res_;
-  res.period_history   = hist_T_;
-  // The returned iterate: the solution, or the best one seen.
-  if (!res.converged) PetscCall(VecCopy(best_x_, x));
-  PetscCall(Unpack(x, aU_, adU_, &res.period));
-  res.residual = res.converged ? hist_res_.back() : best_res_;
-  {
-    VecScatter sc;
-    Vec        z;
-    PetscCall(VecScatterCreateToZero(x, &sc, &z));
-    PetscCall(VecScatterBegin(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
-    // Global order of x is rank by rank (U block, dU block, [T]); put it back as (U, dU).
-    if (rank == 0) {
-      PetscInt           n;
-      const PetscScalar *a;
-      const PetscInt    *ranges;
-      PetscMPIInt        size;
-      PetscCallMPI(MPI_Comm_size(comm_, &size));
-      PetscCall(VecGetOwnershipRanges(model.F, &ranges));
-      PetscCall(VecGetSize(z, &n));
-      PetscCall(VecGetArrayRead(z, &a));
-      const PetscInt N = ranges[size];
-      res.Z0.assign(2 * N, 0.0);
-      PetscInt off = 0;
-      for (PetscMPIInt q = 0; q < size; ++q) {
-        const PetscInt nl = ranges[q + 1] - ranges[q];
-        for (PetscInt i = 0; i < nl; ++i) {
-          res.Z0[ranges[q] + i]     = PetscRealPart(a[off + i]);
-          res.Z0[N + ranges[q] + i] = PetscRealPart(a[off + nl + i]);
-        }
-        off += 2 * nl;
-      }
-      PetscCall(VecRestoreArrayRead(z, &a));
-    }
-    PetscCall(VecDestroy(&z));
-    PetscCall(VecScatterDestroy(&sc));
-  }
+  if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, x));
+  else PetscCall(Pack(U0, dU0, T0, x));
+  PetscCall(Newton(x, res));
+  PetscCall(GatherZ0(x, res));
   PetscCall(Orbit(aU_, adU_, res.period, res));
   const PetscInt newton_steps = evaluations_ * steps + partial_steps_;
   res.newton_evaluations      = evaluations_ + (partial_steps_ + steps - 1) / steps;
   if (res.converged && floquet) {
-    PetscCall(PetscLogEventBegin(ev_floquet, 0, 0, 0, 0));
-    PetscInt N;
-    PetscCall(VecGetSize(model.F, &N));
-    if (2 * N <= floquet_dense_max) {
-      Eigen::MatrixXd Mono;
-      const bool      exact = floquet_exact && ti_->Dense();
-      if (floquet_exact && !ti_->Dense())
-        PetscCall(PetscPrintf(comm_, "shooting: exact monodromy needs the dense theta back end (N <= -theta_dense_max); "
-                                     "using finite differences\n"));
-      res.floquet_method = exact ? "exact step tangents" : "finite differences";
-
-      if (exact) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
-      else PetscCall(Monodromy(aU_, adU_, res.period, Mono));
-      res.floquet_phases = (PetscInt)phase_s_.size();
-      Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
-      for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
-      if (res.floquet_phases > 1) {
-        // The discrete map's own Jacobian at Z0 as well: where the two disagree on stability, the
-        // step is too coarse for the verdict.
-        const PetscInt keep = floquet_phases;
-        floquet_phases      = 1;
-        if (exact) PetscCall(MonodromyExact(aU_, adU_, res.period, Mono));
-        else PetscCall(Monodromy(aU_, adU_, res.period, Mono));
-        floquet_phases = keep;
-        Eigen::EigenSolver<Eigen::MatrixXd> e0(Mono, false);
-        for (Eigen::Index i = 0; i < e0.eigenvalues().size(); ++i) res.floquet_at_z0.push_back(e0.eigenvalues()(i));
-      }
-    } else {
-      PetscCall(FloquetMatrixFree(aU_, adU_, res.period, res.floquet));
-      res.floquet_method = !mono_exact_ ? "SLEPc, matrix-free finite differences"
-                           : floquet_block > 0 ? "block Arnoldi on exact step tangents"
-                                               : "SLEPc, matrix-free exact step tangents";
-      res.floquet_phases = (PetscInt)phase_s_.size();
-    }
-    // Sorted by modulus; the one closest to 1 is the trivial one; stable if all others are inside.
-    auto classify = [](std::vector<std::complex<PetscReal>> &m, PetscInt &trivial, PetscReal &others) {
-      std::sort(m.begin(), m.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
-      PetscReal best = kInf;
-      others         = 0;
-      for (size_t i = 0; i < m.size(); ++i)
-        if (std::abs(m[i] - 1.0) < best) best = std::abs(m[i] - 1.0), trivial = (PetscInt)i;
-      for (size_t i = 0; i < m.size(); ++i)
-        if ((PetscInt)i != trivial) others = std::max(others, std::abs(m[i]));
-    };
-    PetscReal others = 0;
-    if (!res.floquet.empty()) {
-      classify(res.floquet, res.trivial, others);
-      res.stable_cycle = others < 1;
-    }
-    if (!res.floquet_at_z0.empty()) classify(res.floquet_at_z0, res.trivial_at_z0, res.largest_at_z0);
-    if (!res.floquet.empty()) {
-      const FloquetVerdictResult v = FloquetVerdict(others, std::abs(res.floquet[res.trivial] - 1.0),
-                                                    res.floquet_at_z0.empty() ? 0.0 : std::abs(res.largest_at_z0 - others));
-      res.floquet_verdict = v.word;
-      res.floquet_margin  = v.margin;
-      res.floquet_error   = v.error;
-    }
-    PetscCall(PetscLogEventEnd(ev_floquet, 0, 0, 0, 0));
+    PetscCall(PetscLogEventBegin(shoot_ev::floquet, 0, 0, 0, 0));
+    PetscCall(floquet_.Compute(aU_, adU_, res.period, res));
+    PetscCall(PetscLogEventEnd(shoot_ev::floquet, 0, 0, 0, 0));
   }
   res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
   res.floquet_evaluations = (evaluations_ * steps + partial_steps_ - newton_steps + steps - 1) / steps;
@@ -1683,6 +351,104 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
              : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
              : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
                                        : "; if the cycle attracts, start closer: more -shoot_pre_periods");
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(shoot_ev::pre, 0, 0, 0, 0));
+  // Where the cycle's shape is far from the unstable mode's (many contacts with separation and
+  // stick), periods of the flow bring the start into the attracting cycle's neighbourhood. After
+  // each period the return distance is read with the period corrected to first order along the
+  // end point's vector field G: dt = -G.(Z1 - Z)/|G|^2, e = |Z1 - Z + dt G| / |Z1| (the residual
+  // Newton would see at T + dt). It stops once e < -shoot_pre_tol and starts Newton at T + dt.
+  VecH            U, dU;
+  Eigen::VectorXd r;
+  PetscBool       mon = PETSC_FALSE;
+  PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
+  PetscCall(VecDuplicate(U0, U.out()));
+  PetscCall(VecDuplicate(dU0, dU.out()));
+  PetscCall(VecCopy(U0, U));
+  PetscCall(VecCopy(dU0, dU));
+  PetscReal T = T0, e = kInf;
+  PetscInt  k = 0;
+  while (k < pre_periods) {
+    PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
+    ++k;
+    PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
+    PetscScalar a1, a2, b1, b2;
+    PetscReal   n1, n2;
+    PetscCall(VecWAXPY(wU_, -1.0, U, U1_));
+    PetscCall(VecWAXPY(wdU_, -1.0, dU, dU1_));
+    PetscCall(VecDot(wU_, gU_, &a1));
+    PetscCall(VecDot(wdU_, gdU_, &a2));
+    PetscCall(VecDot(gU_, gU_, &b1));
+    PetscCall(VecDot(gdU_, gdU_, &b2));
+    const PetscReal dt = PetscRealPart(b1 + b2) > 0 ? -PetscRealPart(a1 + a2) / PetscRealPart(b1 + b2) : 0.0;
+    PetscCall(VecAXPY(wU_, dt, gU_));
+    PetscCall(VecAXPY(wdU_, dt, gdU_));
+    PetscCall(VecNorm(wU_, NORM_2, &n1));
+    PetscCall(VecNorm(wdU_, NORM_2, &n2));
+    const PetscReal d = std::hypot(n1, n2);
+    PetscCall(VecNorm(U1_, NORM_2, &n1));
+    PetscCall(VecNorm(dU1_, NORM_2, &n2));
+    e = d / std::hypot(n1, n2);
+    PetscCall(VecCopy(U1_, U));
+    PetscCall(VecCopy(dU1_, dU));
+    if (mon)
+      PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
+                            (double)(T + dt)));
+    // The corrected period is used from here on only while it stays near T0: far from the cycle
+    // the first-order correction can be large and meaningless.
+    if (std::abs(dt) < 0.05 * T0) T += dt;
+    if (e < pre_tol) break;
+  }
+  PetscCall(PetscPrintf(comm_,
+                        "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
+                        ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
+                        k, pre_periods, (double)pre_tol, (double)e, (double)T));
+  pre_done_ = k, pre_T_ = T;
+  PetscCall(PetscLogEventEnd(shoot_ev::pre, 0, 0, 0, 0));
+  PetscCall(Pack(U, dU, T, x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::GatherZ0(Vec x, ShootingResult &res)
+{
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  VecScatter sc;
+  Vec        z;
+  PetscCall(VecScatterCreateToZero(x, &sc, &z));
+  PetscCall(VecScatterBegin(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, x, z, INSERT_VALUES, SCATTER_FORWARD));
+  // Global order of x is rank by rank (U block, dU block, [T]); put it back as (U, dU).
+  if (rank == 0) {
+    PetscInt           n;
+    const PetscScalar *a;
+    const PetscInt    *ranges;
+    PetscMPIInt        size;
+    PetscCallMPI(MPI_Comm_size(comm_, &size));
+    PetscCall(VecGetOwnershipRanges(model_->F, &ranges));
+    PetscCall(VecGetSize(z, &n));
+    PetscCall(VecGetArrayRead(z, &a));
+    const PetscInt N = ranges[size];
+    res.Z0.assign(2 * N, 0.0);
+    PetscInt off = 0;
+    for (PetscMPIInt q = 0; q < size; ++q) {
+      const PetscInt nl = ranges[q + 1] - ranges[q];
+      for (PetscInt i = 0; i < nl; ++i) {
+        res.Z0[ranges[q] + i]     = PetscRealPart(a[off + i]);
+        res.Z0[N + ranges[q] + i] = PetscRealPart(a[off + nl + i]);
+      }
+      off += 2 * nl;
+    }
+    PetscCall(VecRestoreArrayRead(z, &a));
+  }
+  PetscCall(VecDestroy(&z));
+  PetscCall(VecScatterDestroy(&sc));
   PetscFunctionReturn(0);
 }
 
@@ -1783,12 +549,6 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting/period", "units", "s"));
   PetscCall(out.WriteAttribute("/shooting/Z0", "layout", "(U, dU)"));
   PetscFunctionReturn(0);
-}
-
-FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread)
-{
-  const PetscReal margin = 1 - largest_nontrivial, error = std::max(trivial_error, phase_spread);
-  return {std::abs(margin) <= error ? "undecided" : margin > 0 ? "stable" : "unstable", margin, error};
 }
 
 } // namespace squeal

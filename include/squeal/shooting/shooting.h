@@ -15,20 +15,16 @@
 // m J + F grad m^T: the sliding equilibrium, where H = 0 for any T, is no longer a root. Newton stops
 // when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate x_k, dT being the Newton
 // correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
-// Floquet multipliers: eigenvalues of the monodromy matrix, from the exact tangents of the steps
-// (docs/method.md §6, statuses held fixed; dense theta back end) or from 2N forward differences
-// (delta = fd_step ||U0|| for displacement columns, fd_step ||dU0|| for velocity columns), or
-// for large models the leading ones by SLEPc on a matrix-free product. The discrete period map is
-// only piecewise smooth along the orbit (the step that holds an impact moves with the phase), so
-// its own trivial multiplier misses 1 by ~1e-3 whatever h. The monodromy is therefore averaged
-// over -shoot_floquet_phases starting points spread over one step of the orbit (Z0 + s (Z1 - Z0),
-// s at the midpoints of [0, 1)): the average is the derivative of the phase-averaged map, whose
-// trivial multiplier closes on 1 (docs/numerics.md). The trivial multiplier (closest to 1) is reported as
-// an accuracy check.
+// At convergence, the Floquet multipliers of the orbit (-shoot_floquet): FloquetSolver
+// (floquet/floquet.h), on this object's flow and tangents.
+// Sources: src/shooting/shooting.cpp (options, set-up, Solve and its steps, pre-periods, orbit,
+// report), newton.cpp (residual, Jacobian products, anchor, deflation, SNES callbacks), tangent.cpp
+// (flows, tangent flows, the dense bordered Jacobian, the linearised preconditioner).
 #pragma once
 
 #include "squeal/core/inf.h"
 #include "squeal/core/gather.h"
+#include "squeal/floquet/floquet.h"
 #include "squeal/integration/theta.h"
 #include "squeal/io/h5.h"
 #include "squeal/stability/equilibrium.h"
@@ -69,7 +65,7 @@ struct ShootingResult {
   PetscReal                            largest_at_z0 = 0;  // largest non-trivial |L| at Z0
   PetscInt                             trivial = -1;       // index of the multiplier closest to 1
   bool                                 stable_cycle = false; // largest non-trivial |L| < 1 (see the verdict)
-  // The verdict with its error (FloquetVerdict below): "stable", "unstable" or "undecided".
+  // The verdict with its error (FloquetVerdict, floquet/floquet.h): "stable", "unstable" or "undecided".
   std::string                          floquet_verdict;
   PetscReal                            floquet_margin = 0, floquet_error = 0;
   std::vector<PetscReal>               orbit_t, orbit_U;   // one period, rank 0
@@ -77,17 +73,6 @@ struct ShootingResult {
   std::vector<PetscReal>               peak_to_peak;       // per DOF over the orbit
   PetscReal                            frac_separated = 0, frac_stuck = 0;
 };
-
-// The Floquet verdict carries its error. The trivial multiplier would be exactly 1 for an exact
-// monodromy, so |L_trivial - 1| measures the discretisation's error on the multipliers; where
-// the phase average and the Jacobian at Z0 disagree (a status change moving within its step),
-// their difference in the largest non-trivial |L| is an error too. The margin is
-// 1 - largest non-trivial |L|; the verdict is "undecided" when |margin| <= error.
-struct FloquetVerdictResult {
-  const char *word;
-  PetscReal   margin, error;
-};
-FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread = 0);
 
 class Shooting {
 public:
@@ -121,19 +106,18 @@ public:
   PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
   PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
-  PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
-  // The same matrix as the product of the exact step tangents along one flow (docs/method.md §6),
-  // statuses held fixed: no finite-difference error, one flow instead of 2N + 1. Dense back end.
-  PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono);
-  // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell
-  // whose product is a forward difference of the flow: for models too large for 2N integrations.
-  PetscErrorCode FloquetMatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult);
-  // The exact-tangent case of it (one phase, dense back end) by block Arnoldi: each tangent
-  // integration carries -shoot_floquet_block columns, so the step matrices are read once for all
-  // of them (matrix-matrix instead of matrix-vector products); no restart, the basis grows until
-  // the floquet_nev largest Ritz values have relative residuals below floquet_tol.
-  PetscErrorCode FloquetBlockArnoldi(std::vector<std::complex<PetscReal>> &mult);
+  // The monodromy averaged over -shoot_floquet_phases starting points, by finite differences of
+  // the flow or from the exact step tangents (FloquetSolver::Monodromy, MonodromyExact).
+  PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
+  {
+    return floquet_.Monodromy(U0, dU0, T, floquet_phases, Mono);
+  }
+  PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
+  {
+    return floquet_.MonodromyExact(U0, dU0, T, floquet_phases, Mono);
+  }
 
+  // floquet_*: the -shoot_floquet_* options, read here, used by FloquetSolver (floquet/floquet.h).
   PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
   // -shoot_floquet_bisect_interp: width of phase interval below which the bisection of the phase
@@ -168,19 +152,27 @@ public:
 
 private:
   friend struct ShootingCallbacks;
-  VecH mono_U0_, mono_dU0_;                        // Z0 of the matrix-free monodromy
-  std::vector<std::pair<VecH, VecH>> mono_start_, mono_base_; // per phase: start and its flow
-  PetscReal mono_T_ = 0;
-  bool      mono_exact_ = false; // matrix-free monodromy products from exact tangents along the flow from mono_x_
-  VecH      mono_x_;
+  // The Floquet computation runs on the flow, its tangents and the stored trajectory below.
+  friend class FloquetSolver;
+  FloquetSolver  floquet_{*this};
   PetscErrorCode SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti);
+  PetscErrorCode SetUpAt(PetscReal T); // the integrator's step matrices for h = T / N_s, unless already
+  // Counts a flow of n steps: a period integration when n = N_s, else pro rata in partial_steps_.
+  void           CountSteps(PetscInt n)
+  {
+    if (n >= steps) ++evaluations_;
+    else partial_steps_ += n;
+  }
   PetscErrorCode VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU); // G(Z)
-  PetscErrorCode ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T); // shift{U,dU}_ = one step from Z0, minus Z0
-  PetscErrorCode PhaseStart(Vec U0, Vec dU0, PetscReal s, Vec U, Vec dU); // Z0 + s (shift)
-  // Nodes s and weights of the average over one step of the orbit (-shoot_floquet_phases).
-  PetscErrorCode SetUpPhases(Vec U0, Vec dU0, PetscReal T, bool adaptive_default);
-  std::vector<PetscReal> phase_s_, phase_w_;
-  VecH           shiftU_, shiftdU_;
+  // The steps of Solve: the SNES, KSP and preconditioner for this model's back end and size (and
+  // the per-solve state reset); the -shoot_pre_periods from (U0, dU0, T0), leaving the start of
+  // Newton in x; Newton from x, leaving the returned iterate in x and (aU_, adU_); the reason of a
+  // failed SNES; the returned Z0 on rank 0 in the natural order (U, dU).
+  PetscErrorCode SetUpNewton();
+  PetscErrorCode PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x);
+  PetscErrorCode Newton(Vec x, ShootingResult &res);
+  PetscErrorCode NewtonFailure(SNESConvergedReason reason);
+  PetscErrorCode GatherZ0(Vec x, ShootingResult &res);
   PetscErrorCode Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
   // The flow from the last residual evaluation (x, Z(x), last reaction): the anchor reuses it.
   VecH            lastx_, lastU1_, lastdU1_;
@@ -216,7 +208,6 @@ private:
   void           *ksp_default_ctx_ = nullptr; // KSPConvergedDefault's, wrapped by KrylovConverged
   PetscReal       rnorm0_          = 0;
   bool            confirm_only_    = false; // this Newton step only confirms |dT| / T < eps2
-  PetscInt        floquet_products_ = 0; // block tangent integrations of the last block Arnoldi
 
   MPI_Comm                 comm_;
   const Model             *model_ = nullptr;

@@ -1,0 +1,96 @@
+// Floquet multipliers of the periodic orbit found by shooting (docs/method.md §6).
+//
+// The multipliers are the eigenvalues of the monodromy matrix, the Jacobian of the period map
+// Z0 -> Z(Z0, T) at the converged orbit. Three routes, chosen by Compute:
+//   - dense (2N <= -shoot_floquet_dense_max): the whole monodromy, from the exact tangents of the
+//     steps (MonodromyExact: statuses held fixed, dense theta back end) or from 2N forward
+//     differences (Monodromy: delta = fd_step ||U0|| for displacement columns, fd_step ||dU0|| for
+//     velocity columns);
+//   - matrix-free (larger models): the -shoot_floquet_nev largest multipliers by SLEPc on a
+//     MatShell whose product is a forward difference of the flow or an exact tangent integration;
+//   - block Arnoldi: the exact-tangent case of the matrix-free route, -shoot_floquet_block columns
+//     per tangent integration.
+// The discrete period map is only piecewise smooth along the orbit (the step that holds an impact
+// moves with the phase), so its own trivial multiplier misses 1 by ~1e-3 whatever h. The monodromy
+// is therefore averaged over -shoot_floquet_phases starting points spread over one step of the
+// orbit (Z0 + s (Z1 - Z0), s in [0, 1)): the average is the derivative of the phase-averaged map,
+// whose trivial multiplier closes on 1 (docs/numerics.md). The trivial multiplier (closest to 1)
+// is reported as an accuracy check, and the verdict carries its error (FloquetVerdict).
+//
+// FloquetSolver runs on the flow and the tangents of its Shooting (the integrator set up at the
+// orbit's period, the stored trajectory of the last residual); the -shoot_floquet_* options are
+// read by Shooting::SetFromOptions and held there.
+#pragma once
+
+#include "squeal/core/handle.h"
+
+#include <Eigen/Dense>
+#include <petscsys.h>
+
+#include <complex>
+#include <utility>
+#include <vector>
+
+namespace squeal {
+
+class Shooting;
+struct ShootingResult;
+
+// The Floquet verdict carries its error. The trivial multiplier would be exactly 1 for an exact
+// monodromy, so |L_trivial - 1| measures the discretisation's error on the multipliers; where
+// the phase average and the Jacobian at Z0 disagree (a status change moving within its step),
+// their difference in the largest non-trivial |L| is an error too. The margin is
+// 1 - largest non-trivial |L|; the verdict is "undecided" when |margin| <= error.
+struct FloquetVerdictResult {
+  const char *word;
+  PetscReal   margin, error;
+};
+FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread = 0);
+
+class FloquetSolver {
+public:
+  explicit FloquetSolver(Shooting &sh) : sh_(sh) {}
+  // The multipliers of the orbit from (U0, dU0) with period T into res (floquet, floquet_at_z0,
+  // the trivial one, the verdict); the route as above. The orbit's flow is the shooting's last.
+  PetscErrorCode Compute(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
+  // The dense monodromy averaged over `phases` starting points (as -shoot_floquet_phases;
+  // PETSC_DECIDE: adaptive), by forward differences of the flow.
+  PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, PetscInt phases, Eigen::MatrixXd &Mono);
+  // The same matrix as the product of the exact step tangents along one flow (docs/method.md §6),
+  // statuses held fixed: no finite-difference error, one flow instead of 2N + 1. Dense back end.
+  PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, PetscInt phases, Eigen::MatrixXd &Mono);
+  // The floquet_nev largest multipliers by SLEPc (Krylov-Schur, largest magnitude) on a MatShell
+  // whose product is a forward difference of the flow: for models too large for 2N integrations.
+  PetscErrorCode MatrixFree(Vec U0, Vec dU0, PetscReal T, std::vector<std::complex<PetscReal>> &mult);
+  // The exact-tangent case of it (one phase, dense back end) by block Arnoldi: each tangent
+  // integration carries -shoot_floquet_block columns, so the step matrices are read once for all
+  // of them (matrix-matrix instead of matrix-vector products); no restart, the basis grows until
+  // the floquet_nev largest Ritz values have relative residuals below floquet_tol.
+  PetscErrorCode BlockArnoldi(std::vector<std::complex<PetscReal>> &mult);
+  // A new model may have another size: the one-step shift is rebuilt on first use.
+  void Reset() { shiftU_.reset(), shiftdU_.reset(); }
+
+private:
+  class PhaseBisection; // the search for PhaseBreaks
+  Shooting &sh_;
+  // Nodes s and weights of the average over one step of the orbit: K phases (-shoot_floquet_phases;
+  // PETSC_DECIDE: adaptive when adaptive_default, else one).
+  PetscErrorCode SetUpPhases(Vec U0, Vec dU0, PetscReal T, PetscInt K, bool adaptive_default);
+  // K = 0: the values of s in [0, 1] where a status change of the flow moves to another step.
+  PetscErrorCode PhaseBreaks(Vec U0, Vec dU0, PetscReal T, std::vector<PetscReal> &breaks);
+  PetscErrorCode ShiftAlongOrbit(Vec U0, Vec dU0, PetscReal T);            // shift{U,dU}_ = one step from Z0, minus Z0
+  PetscErrorCode PhaseStart(Vec U0, Vec dU0, PetscReal s, Vec U, Vec dU); // Z0 + s (shift)
+  // y = M v, the MatShell product of the matrix-free route.
+  static PetscErrorCode MonodromyMult(Mat A, Vec v, Vec y);
+
+  std::vector<PetscReal> phase_s_, phase_w_;
+  VecH                   shiftU_, shiftdU_;
+  VecH                   mono_U0_, mono_dU0_;                  // Z0 of the matrix-free monodromy
+  std::vector<std::pair<VecH, VecH>> mono_start_, mono_base_; // per phase: start and its flow
+  PetscReal              mono_T_     = 0;
+  bool                   mono_exact_ = false; // matrix-free products from exact tangents along the flow from mono_x_
+  VecH                   mono_x_;
+  PetscInt               products_ = 0; // block tangent integrations of the last block Arnoldi
+};
+
+} // namespace squeal

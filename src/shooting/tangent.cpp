@@ -1,0 +1,260 @@
+// Flows and tangent flows of the shooting's period map (docs/method.md §6): the theta-method flow
+// over one period from (Z0, T), with the trajectory stored for the tangents; the exact tangent of
+// the period map along that stored flow; the dense bordered Jacobian built from it and the
+// linearised-monodromy preconditioner. Used by Newton (newton.cpp) and by the Floquet multipliers
+// (floquet/floquet.cpp).
+#include "squeal/shooting/shooting.h"
+#include "internal.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace squeal {
+
+PetscErrorCode Shooting::SetUpAt(PetscReal T)
+{
+  PetscFunctionBeginUser;
+  // A new period means a new step size: (S1)-(S3) again.
+  if (T != T_setup_) {
+    PetscCall(ti_->SetUp(*model_, T / steps));
+    T_setup_ = T;
+    ++setups_;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen::VectorXd *r_end, std::vector<PetscInt> *transitions)
+{
+  Eigen::VectorXd r = r_init_;
+  StepInfo        info;
+  std::vector<int> prev, cur;
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(shoot_ev::flow, 0, 0, 0, 0));
+  PetscCall(SetUpAt(T));
+  PetscCall(VecCopy(U, U1));
+  PetscCall(VecCopy(dU, dU1));
+  const PetscInt nc = model_->contacts.Size();
+  if (record_) {
+    trU_.resize(N_, steps + 1), trdU_.resize(N_, steps + 1), trV_.resize(3 * nc, steps + 1), trR_.resize(3 * nc, steps);
+    PetscCall(Full(U1, trU_.col(0)));
+    PetscCall(Full(dU1, trdU_.col(0)));
+    if (nc) {
+      PetscCall(ti_->Local(dU1, vloc_));
+      trV_.col(0) = vloc_;
+    }
+  }
+  if (transitions) {
+    transitions->clear();
+    ti_->Contact().Status(r, prev);
+  }
+  const PetscInt run = flow_stop_ > 0 ? std::min(flow_stop_, steps) : steps;
+  for (PetscInt i = 0; i < run; ++i) {
+    PetscCall(ti_->Step(U1, dU1, r, &info));
+    PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
+               "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
+    if (record_) {
+      PetscCall(Full(U1, trU_.col(i + 1)));
+      PetscCall(Full(dU1, trdU_.col(i + 1)));
+      if (nc) {
+        trR_.col(i) = r;
+        PetscCall(ti_->Local(dU1, vloc_));
+        trV_.col(i + 1) = vloc_;
+      }
+    }
+    if (transitions) {
+      ti_->Contact().Status(r, cur);
+      for (size_t c = 0; c < cur.size(); ++c)
+        if (cur[c] != prev[c]) transitions->insert(transitions->end(), {i, (PetscInt)c, (PetscInt)cur[c]});
+      std::swap(prev, cur);
+    }
+  }
+  CountSteps(run);
+  if (r_end) *r_end = r;
+  PetscCall(PetscLogEventEnd(shoot_ev::flow, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::VectorField(Vec U, Vec dU, const Eigen::VectorXd &r, Vec gU, Vec gdU)
+{
+  PetscFunctionBeginUser;
+  // G(Z) = (dU, M^-1 (F + H r - C dU - K U))
+  PetscCall(VecCopy(dU, gU));
+  PetscCall(MatMult(model_->K, U, tmp_));
+  PetscCall(VecAYPX(tmp_, -1.0, model_->F));
+  if (model_->HasDamping()) {
+    PetscCall(MatMult(model_->C, dU, gdU));
+    PetscCall(VecAXPY(tmp_, -1.0, gdU));
+  }
+  if (r.size()) PetscCall(model_->contacts.AddForce(r.data(), tmp_));
+  PetscCall(KSPSolve(mass_ksp_, tmp_, gdU));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::Full(Vec v, Eigen::Ref<Eigen::VectorXd> out)
+{
+  PetscFunctionBeginUser;
+  if (size_ > 1) {
+    PetscCall(gather_(v, out));
+    PetscFunctionReturn(0);
+  }
+  const PetscScalar *a;
+  PetscCall(VecGetArrayRead(v, &a));
+  for (PetscInt i = 0; i < N_; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(v, &a));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::ToNatural(Vec x, Eigen::VectorXd &z)
+{
+  PetscReal T;
+  PetscFunctionBeginUser;
+  z.resize(2 * N_ + 1);
+  PetscCall(Unpack(x, wU_, wdU_, &T));
+  PetscCall(Full(wU_, z.head(N_)));
+  PetscCall(Full(wdU_, z.segment(N_, N_)));
+  z[2 * N_] = T;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::FromNatural(const Eigen::VectorXd &z, Vec x)
+{
+  PetscInt     lo, hi, nl;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(model_->F, &lo, &hi));
+  PetscCall(VecGetLocalSize(x, &nl));
+  PetscCall(VecGetArray(x, &a));
+  for (PetscInt i = 0; i < nloc_; ++i) a[i] = z[lo + i], a[nloc_ + i] = z[N_ + lo + i];
+  if (nl > 2 * nloc_) a[2 * nloc_] = z[2 * N_];
+  PetscCall(VecRestoreArray(x, &a));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::EnsureTrajectory(Vec x)
+{
+  PetscBool same = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  if (tr_valid_) PetscCall(VecEqual(x, trx_, &same));
+  if (!same) {
+    PetscCall(Residual(x, fp_));
+    PetscCheck(tr_valid_, comm_, PETSC_ERR_PLIB, "shooting: no flow at this iterate (period outside (T0/2, 2 T0))");
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT, Eigen::MatrixXd &dZ1)
+{
+  const PetscInt N = N_;
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(shoot_ev::tangent, 0, 0, 0, 0));
+  PetscCheck(ExactJacobian(), comm_, PETSC_ERR_SUP,
+             "shooting: exact tangents need the dense theta back end (N = %" PetscInt_FMT " > -theta_dense_max) and -shoot_exact_jacobian",
+             N);
+  PetscCall(EnsureTrajectory(x));
+  if (T_setup_ != trT_) { // a test or a difference product moved the step size since
+    PetscCall(ti_->SetUp(*model_, trT_ / steps));
+    T_setup_ = trT_;
+    ++setups_;
+    for (auto &f : trF_) f.valid = false;
+  }
+  const PetscInt nc = model_->contacts.Size();
+  if (!trC_ready_) {
+    // The h-sources depend on the base flow only: once per stored trajectory.
+    trC_.resize(N, steps);
+    for (auto &f : trF_) f.valid = false;
+    for (PetscInt i = 0; i < steps; ++i) {
+      sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sve_ = trU_.col(i);
+      if (nc) sr_ = trR_.col(i);
+      else sr_.resize(0);
+      PetscCall(ti_->StepTangentSource(sve_, sdUi_, sdUn_, sr_, sc_));
+      trC_.col(i) = sc_;
+    }
+    trC_ready_ = true;
+  }
+  Eigen::MatrixXd    dU = dZ0.topRows(N), ddU = dZ0.bottomRows(N);
+  Eigen::RowVectorXd dh = dT / (PetscReal)steps;
+  ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
+  // One-column products (GMRES) would refactorise each step's closed-point system every time:
+  // keep the factors along this flow while they fit in -shoot_tangent_cache_mb.
+  const double factor_mb = 8.0 * 9.0 * nc * nc * steps / 1048576.0;
+  const bool   cache     = nc > 0 && factor_mb <= tangent_cache_mb;
+  if (cache && (PetscInt)trF_.size() != steps) trF_.assign(steps, {});
+  for (PetscInt i = 0; i < steps; ++i) {
+    sd.factor = cache ? &trF_[i] : nullptr;
+    sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sc_ = trC_.col(i);
+    if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
+    else sr_.resize(0), svs_.resize(0), sve_.resize(0);
+    PetscCall(ti_->StepTangent(sr_, sve_, sd, dh, dU, ddU));
+  }
+  dZ1.resize(2 * N, dZ0.cols());
+  dZ1.topRows(N)    = dU;
+  dZ1.bottomRows(N) = ddU;
+  ++evaluations_, ++tangents_;
+  PetscCall(PetscLogEventEnd(shoot_ev::tangent, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::BuildDenseJacobian(Vec x)
+{
+  const PetscInt n2 = 2 * N_;
+  PetscFunctionBeginUser;
+  Eigen::MatrixXd    E = Eigen::MatrixXd::Identity(n2, n2 + 1), D;
+  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Zero(n2 + 1);
+  dT[n2] = 1.0;
+  PetscCall(TangentFlow(x, E, dT, D));
+  Jd_.setZero(n2 + 1, n2 + 1);
+  Jd_.topRows(n2) = D;
+  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
+  if (anchored_) {
+    Eigen::VectorXd g(n2);
+    PetscCall(Full(GaU_, g.head(N_)));
+    PetscCall(Full(GadU_, g.tail(N_)));
+    Jd_.row(n2).head(n2) = g.transpose();
+  }
+  jlu_.compute(Jd_);
+  PetscCall(VecCopy(x, jx_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
+{
+  const PetscInt n2 = 2 * N_;
+  PetscFunctionBeginUser;
+  if (Mlin_.rows() != n2) {
+    // Weakly damped structural modes put many multipliers near the unit circle, spread round it:
+    // unpreconditioned GMRES needs about one iteration each. They are nearly those of the steady
+    // sliding linearisation, whose monodromy costs one step tangent (2N columns at the equilibrium
+    // reactions: every point closed and sliding, slip direction against V_c) and log2(N_s) squarings.
+    Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N_, n2), ddU = Eigen::MatrixXd::Zero(N_, n2);
+    dU.leftCols(N_).setIdentity();
+    ddU.rightCols(N_).setIdentity();
+    const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(r_init_.size());
+    PetscCall(ti_->StepTangent(r_init_, v0, dU, ddU));
+    Eigen::MatrixXd S(n2, n2), P = Eigen::MatrixXd::Identity(n2, n2), tmp(n2, n2);
+    S.topRows(N_)    = dU;
+    S.bottomRows(N_) = ddU;
+    for (PetscInt e = steps; e > 0; e >>= 1) {
+      if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
+      if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
+    }
+    Mlin_.swap(P);
+  }
+  // The period column is exact (one tangent integration of one column); the border is the anchor's.
+  Eigen::MatrixXd    dT1;
+  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Ones(1);
+  PetscCall(TangentFlow(x, Eigen::MatrixXd::Zero(n2, 1), dT, dT1));
+  Jd_.setZero(n2 + 1, n2 + 1);
+  Jd_.topLeftCorner(n2, n2) = Mlin_;
+  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
+  Jd_.col(n2).head(n2) = dT1.col(0);
+  if (anchored_) {
+    Eigen::VectorXd g(n2);
+    PetscCall(Full(GaU_, g.head(N_)));
+    PetscCall(Full(GadU_, g.tail(N_)));
+    Jd_.row(n2).head(n2) = g.transpose();
+  } else Jd_(n2, n2) = 1.0; // no phase row yet: keep the preconditioner regular
+  jlu_.compute(Jd_);
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
