@@ -72,6 +72,15 @@ PetscErrorCode InterruptRequested(MPI_Comm comm, bool *stop)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode InterruptPoint(MPI_Comm comm, const char *where)
+{
+  bool stop;
+  PetscFunctionBeginUser;
+  PetscCall(InterruptRequested(comm, &stop));
+  PetscCheck(!stop, comm, PETSC_ERR_SIG, "interrupted by %s during %s", InterruptSignalName(), where);
+  PetscFunctionReturn(0);
+}
+
 int InterruptSignal() { return (int)g_signal; }
 
 const char *InterruptSignalName()

@@ -1,4 +1,5 @@
 #include "squeal/io/h5.h"
+#include "squeal/core/interrupt.h"
 
 #include <cerrno>
 #include <cstdio>
@@ -33,7 +34,11 @@ std::string BaseName(const std::string &p)
 H5Writer::~H5Writer()
 {
   if (open_ && !keep_status_.empty()) {
-    PetscCallVoid(SetStatus(keep_status_.c_str()));
+    // An error raised by an interrupt inside a solver (InterruptPoint) is an interrupt, not a failure.
+    const std::string status = InterruptSignal() ? std::string("interrupted (") + InterruptSignalName() +
+                                                     ") inside an analysis; the groups written before it are complete"
+                                                 : keep_status_;
+    PetscCallVoid(SetStatus(status.c_str()));
     PetscCallVoid(Close());
     if (aside_)
       PetscCallVoid(PetscFPrintf(comm_, PETSC_STDERR,

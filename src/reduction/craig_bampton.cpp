@@ -1,4 +1,5 @@
 #include "squeal/reduction/craig_bampton.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
@@ -499,6 +500,12 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     nev = PetscMax(1, PetscMin(nev, PetscMin(max_modes_, nI)));
     PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
     PetscCall(EPSSetFromOptions(eps));
+    PetscCall(EPSMonitorSet(
+      eps,
+      [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
+        return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
+      },
+      nullptr, nullptr));
     PetscCall(KSPSetOperators(ksp, Kii, Kii));
     PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &isredundant));
     fpc = pc;

@@ -2,6 +2,7 @@
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
@@ -72,6 +73,13 @@ PetscErrorCode StabilitySolver::SetFromOptions()
   PetscCall(STGetKSP(st, &ksp));
   PetscCall(UseDirectSolver(ksp, Factorisation::General)); // K_r is non-symmetric
   PetscCall(PEPSetFromOptions(pep_));
+  // SIGINT/SIGTERM within a restart of the eigensolver (a 1200-cell chain's solve ran 300 s deaf).
+  PetscCall(PEPMonitorSet(
+    pep_,
+    [](PEP pep, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
+      return InterruptPoint(PetscObjectComm((PetscObject)pep), "the stability eigensolve");
+    },
+    nullptr, nullptr));
   PetscFunctionReturn(0);
 }
 

@@ -18,6 +18,12 @@ PetscErrorCode InstallInterruptHandlers();
 // their loop at the same step. Cheap (no MPI call on one rank).
 PetscErrorCode InterruptRequested(MPI_Comm comm, bool *stop);
 
+// Collective: on every rank, fails with PETSC_ERR_SIG "interrupted by SIGTERM during <where>"
+// once a signal has reached any rank. For loops inside PETSc/SLEPc solvers (called from their
+// monitors), which cannot stop "after the step in hand": the error unwinds to the application,
+// whose results file keeps what earlier analyses wrote (status "interrupted ...").
+PetscErrorCode InterruptPoint(MPI_Comm comm, const char *where);
+
 // The signal received on this rank (0 if none), and its name ("SIGINT", "SIGTERM").
 int         InterruptSignal();
 const char *InterruptSignalName();

@@ -1,0 +1,70 @@
+#!/usr/bin/env python3
+"""A signal inside a solver's own loop (an eigensolve, a reduction) is obeyed (issue 20, item 1).
+
+    check_interrupt_anywhere.py --output F --after REGEX [--wait S] [--signal INT|TERM] [--within S] -- cmd...
+
+Starts cmd, waits for a stdout line matching REGEX and S more seconds (inside the long solve),
+sends the signal and checks: the run stops within --within seconds (default 3: Open MPI's mpiexec
+itself takes one second to pass SIGTERM on), exit code in 1..127, stderr says
+"interrupted by SIG... during", and F exists with the root status "interrupted (SIG...".
+"""
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+
+
+def main(argv):
+    cut = argv.index("--")
+    opts, cmd = argv[:cut], argv[cut + 1:]
+    args = dict(zip(opts[0::2], opts[1::2]))
+    out, pattern = args["--output"], re.compile(args["--after"])
+    wait, within = float(args.get("--wait", "1")), float(args.get("--within", "3"))
+    sig = signal.SIGTERM if args.get("--signal", "TERM") == "TERM" else signal.SIGINT
+    name = "SIGTERM" if sig == signal.SIGTERM else "SIGINT"
+    if os.path.exists(out):
+        os.remove(out)
+    print("+ " + " ".join(cmd))
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
+    seen = []
+    for line in p.stdout:
+        seen.append(line)
+        if pattern.search(line):
+            break
+    time.sleep(wait)
+    running = p.poll() is None
+    t0 = time.time()
+    p.send_signal(sig)
+    rest, err = p.communicate(timeout=120)
+    dt = time.time() - t0
+    print("".join(seen) + rest)
+    print("--- stderr:\n" + err)
+    checks = [
+        (running, f"still running {wait} s after /{pattern.pattern}/"),
+        (dt <= within, f"stopped {dt:.2f} s after {name} (<= {within} s)"),
+        (0 < p.returncode < 128, f"exit code {p.returncode} in 1..127"),
+        (re.search(r"^squeal: error: interrupted by " + name + " during", err, re.M) is not None,
+         f"stderr says 'interrupted by {name} during'"),
+        (out in err, "the message names the results file"),
+    ]
+    if os.path.exists(out):
+        with h5py.File(out, "r") as f:
+            s = f.attrs["status"]
+            s = s.decode() if isinstance(s, bytes) else str(s)
+        checks.append((s.startswith("interrupted (" + name), f"root status '{s}'"))
+    else:
+        checks.append((False, f"{out} exists"))
+    bad = 0
+    for good, what in checks:
+        print(("ok:   " if good else "FAIL: ") + what)
+        bad += not good
+    print("PASS" if not bad else f"{bad} check(s) FAILED")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
