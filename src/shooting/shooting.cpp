@@ -3,6 +3,7 @@
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
@@ -140,6 +141,20 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscCall(KSPSetFromOptions(ksp)); // read -shoot_ksp_* now, so that a typo is caught up front
   // Our monitor prints what the method's stopping rule looks at; PETSc's would print ||F||.
   PetscCall(SNESMonitorCancel(snes_));
+  // SIGINT/SIGTERM between Newton iterations and between Krylov iterations (each one a tangent
+  // integration: seconds at FE scale), raised as an error: the best iterate is still written.
+  PetscCall(SNESMonitorSet(
+    snes_,
+    [](SNES s, PetscInt, PetscReal, void *) -> PetscErrorCode {
+      return InterruptPoint(PetscObjectComm((PetscObject)s), "shooting's Newton iterations");
+    },
+    nullptr, nullptr));
+  PetscCall(KSPMonitorSet(
+    ksp,
+    [](KSP k, PetscInt, PetscReal, void *) -> PetscErrorCode {
+      return InterruptPoint(PetscObjectComm((PetscObject)k), "shooting's Krylov iterations");
+    },
+    nullptr, nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -374,6 +389,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
   PetscReal T = T0, e = kInf;
   PetscInt  k = 0;
   while (k < pre_periods) {
+    PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
     PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
     ++k;
     PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
