@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <functional>
 
 #include <yaml.h>
 
@@ -41,34 +42,50 @@ PetscErrorCode OptionChecks::Run(MPI_Comm comm) const
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// The options nobody read that `judged` keeps: up to five names ("-a, -b") and their count.
+PetscErrorCode UnusedOptions(const std::function<bool(const char *)> &judged, std::string &list, int &count)
+{
+  PetscInt n     = 0;
+  char   **names = nullptr, **values = nullptr;
+  PetscFunctionBeginUser;
+  list.clear(), count = 0;
+  PetscCall(PetscOptionsLeftGet(nullptr, &n, &names, &values));
+  for (PetscInt i = 0; i < n; ++i) {
+    if (!judged(names[i])) continue;
+    if (count < 5) list += std::string(count ? ", -" : "-") + names[i];
+    ++count;
+  }
+  PetscCall(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
 PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
 {
   // Read by PETSc itself only at PetscFinalize(), so still "unused" here.
   static const char *const finalize_time[] = {"options_left", "malloc_dump", "malloc_view", "memory_view",
                                               "objects_dump", "log_view", "log_summary", "squeal_traceback",
                                               "help", "scene"};
-  PetscInt n     = 0;
-  char   **names = nullptr, **values = nullptr;
   std::string unused;
   int         count = 0;
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsLeftGet(nullptr, &n, &names, &values));
-  for (PetscInt i = 0; i < n; ++i) {
-    bool known = false;
-    for (const char *f : finalize_time) known = known || std::strcmp(names[i], f) == 0;
-    const size_t len = std::strlen(names[i]);
-    if (skip_views && (std::strstr(names[i], "_view") || std::strstr(names[i], "_monitor") ||
-                       std::strstr(names[i], "converged_reason") ||
-                       (len >= 4 && std::strcmp(names[i] + len - 4, "view") == 0)))
-      continue;
-    // Factorisation options (-eq_mat_mumps_icntl_14, -theta_mat_mumps_*) are read when a factor is
-    // set up, after the first check, and not at all when a run needs no such factor; the Floquet
-    // eigensolver's (-shoot_floquet_eps_*) once shooting has converged, and not at all by the block Arnoldi.
-    if (known || std::strstr(names[i], "mat_mumps_") || std::strstr(names[i], "floquet_eps_")) continue;
-    if (count < 5) unused += std::string(count ? ", -" : "-") + names[i];
-    ++count;
-  }
-  PetscCall(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  PetscCall(UnusedOptions(
+    [&](const char *name) {
+      bool known = false;
+      for (const char *f : finalize_time) known = known || std::strcmp(name, f) == 0;
+      const size_t len = std::strlen(name);
+      if (skip_views && (std::strstr(name, "_view") || std::strstr(name, "_monitor") || std::strstr(name, "converged_reason") ||
+                         (len >= 4 && std::strcmp(name + len - 4, "view") == 0)))
+        return false;
+      // Factorisation options (-eq_mat_mumps_icntl_14, -theta_mat_mumps_*) are read when a factor is
+      // set up, after the first check, and not at all when a run needs no such factor; the Floquet
+      // eigensolver's (-shoot_floquet_eps_*) once shooting has converged, and not at all by the block Arnoldi.
+      return !(known || std::strstr(name, "mat_mumps_") || std::strstr(name, "floquet_eps_"));
+    },
+    unused, count));
   if (!skip_views && count > 0) {
     PetscCall(PetscFPrintf(comm, PETSC_STDERR, "warning: option%s %s%s never used (mistyped, or for an analysis this run did not do; see -help)\n",
                            count > 1 ? "s" : "", unused.c_str(), count > 5 ? ", ..." : ""));
@@ -85,21 +102,17 @@ PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
                                         "theta_", "transient_", "energy_", "shoot_", "cont_"};
   static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_",
                                         "_ds_", "_rg_", "_fn_", "_mat_", "_svd_", "_view", "_monitor", "converged_reason"};
-  PetscInt    n     = 0;
-  char      **names = nullptr, **values = nullptr;
   std::string unknown;
   int         count = 0;
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsLeftGet(nullptr, &n, &names, &values));
-  for (PetscInt i = 0; i < n; ++i) {
-    bool squeal = false, object = false;
-    for (const char *p : ours) squeal = squeal || std::strncmp(names[i], p, std::strlen(p)) == 0;
-    for (const char *o : objects) object = object || std::strstr(names[i], o) != nullptr;
-    if (!squeal || object) continue;
-    if (count < 5) unknown += std::string(count ? ", -" : "-") + names[i];
-    ++count;
-  }
-  PetscCall(PetscOptionsLeftRestore(nullptr, &n, &names, &values));
+  PetscCall(UnusedOptions(
+    [](const char *name) {
+      bool squeal = false, object = false;
+      for (const char *p : ours) squeal = squeal || std::strncmp(name, p, std::strlen(p)) == 0;
+      for (const char *o : objects) object = object || std::strstr(name, o) != nullptr;
+      return squeal && !object;
+    },
+    unknown, count));
   PetscCheck(count == 0, comm, kErrInput, "unknown option%s %s%s (mistyped? see -help)", count > 1 ? "s" : "", unknown.c_str(),
              count > 5 ? ", ..." : "");
   PetscFunctionReturn(0);
