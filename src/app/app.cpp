@@ -297,7 +297,10 @@ PetscErrorCode RunAnalyses(MPI_Comm comm, Model &model, Components &k, const Req
       PetscCall(VecScale(dU0, shooting.q_scale));
       ShootingResult sres;
       PetscCall(PetscLogStagePush(st.shooting));
-      PetscErrorCode serr = shooting.Solve(model, eq, theta, U0, dU0, est.T0, sres);
+      if (shooting.period > 0)
+        PetscCall(PetscPrintf(comm, "shooting: start period %s s (-shoot_period) instead of the linear %s s\n", Num(shooting.period).c_str(),
+                              Num(est.T0).c_str()));
+      PetscErrorCode serr = shooting.Solve(model, eq, theta, U0, dU0, shooting.period > 0 ? shooting.period : est.T0, sres);
       PetscCall(PetscLogStagePop());
       PetscCall(shooting.Write(sres, out)); // also the best iterate of a failed run
       PetscCall(serr);

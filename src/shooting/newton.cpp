@@ -283,7 +283,9 @@ PetscErrorCode Shooting::Residual(Vec x, Vec f)
   PetscFunctionBeginUser;
   PetscCall(Unpack(x, U_, dU_, &T));
   if (!(T > 0.5 * T0_ && T < 2 * T0_)) {
-    fail_reason_ = "the period left (T0/2, 2 T0): T = " + std::to_string(T) + " s";
+    char b[160];
+    std::snprintf(b, sizeof b, "the period left (T0/2, 2 T0) = (%.6g, %.6g) s: T = %.6g s", (double)(0.5 * T0_), (double)(2 * T0_), (double)T);
+    fail_reason_ = b;
     if (snes_) PetscCall(SNESSetFunctionDomainError(snes_));
     PetscCall(VecSet(f, PETSC_INFINITY));
     PetscFunctionReturn(0);

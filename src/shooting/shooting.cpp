@@ -47,6 +47,9 @@ PetscErrorCode Shooting::SetFromOptions()
   SquealOptionsReal("-eps2", "... and |dT| / T < eps2 at the same iterate", "Shooting", &eps2, Range::Positive(), checks);
   SquealOptionsReal("-fd_step", "Relative finite-difference step of the flow derivatives", "Shooting", &fd_step, Range::Positive(),
                     checks);
+  SquealOptionsReal("-period", "Start period (s), the centre of the period bracket (T/2, 2T), instead of the unstable mode's "
+                    "linear period (0): for a cycle far from it (the settled period of -analyses transient)",
+                    "Shooting", &period, Range::NonNegative(), checks);
   SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
                     Range::Positive(), checks);
   PetscCall(PetscOptionsBool("-floquet", "Compute Floquet multipliers at convergence", "Shooting", floquet, &floquet, nullptr));
@@ -359,10 +362,15 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   // From the energy estimate, Newton can wander where the cycle's shape is far from the unstable
   // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
   const bool collapsed = res.reason.find("collapsed") != std::string::npos && !(deflate_power > 0);
+  // The period pushed out of the bracket: a cycle far from the linear period (at mu = 5 on case 1
+  // it settles at 2.14 T_lin), which more pre-periods at T0 do not reach.
+  const bool bracket = res.reason.find("the period left") != std::string::npos;
   PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s%s",
              res.reason.c_str(), (double)res.residual, (double)res.period,
              collapsed ? "; keep Newton off the equilibrium with -shoot_deflate_power 2" : "",
-             res.reason.find("Krylov") != std::string::npos ? ""
+             bracket ? "; the cycle's period may be far from the linear one (period-doubled or strongly nonlinear): take the settled "
+                       "period of a transient (-analyses transient) and start from it with -shoot_period"
+             : res.reason.find("Krylov") != std::string::npos ? ""
              : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
              : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
                                        : "; if the cycle attracts, start closer: more -shoot_pre_periods");
