@@ -5,7 +5,12 @@
 #include "squeal/core/solvers.h"
 #include "squeal/core/sparse.h"
 
-#include <petsc/private/vecimpl.h>
+// The one private PETSc header in the build (the 3-DOF fast path below); configure with
+// -DSQUEAL_PETSC_PRIVATE=OFF, or run with -theta_native_arrays 0, for the public API only (the
+// same numbers: test Theta.NativeArraysAndPublicApiGiveTheSameSteps).
+#if SQUEAL_PETSC_PRIVATE
+  #include <petsc/private/vecimpl.h>
+#endif
 
 #include <cmath>
 
@@ -19,13 +24,25 @@ namespace {
 // (device, nest, ...), which then goes through VecGetArray.
 inline bool NativeArray(Vec x, PetscScalar **a)
 {
-#if PETSC_VERSION_GE(3, 18, 0) && PETSC_VERSION_LT(3, 19, 0)
+#if SQUEAL_PETSC_PRIVATE && PETSC_VERSION_GE(3, 18, 0) && PETSC_VERSION_LT(3, 19, 0)
   if (!x->ops->getarray && !x->ops->restorearray && x->petscnative) {
     *a = *(PetscScalar **)x->data;
     return true;
   }
+#else
+  (void)x, (void)a;
 #endif
   return false;
+}
+
+// PetscObject's state, as VecRestoreArray increases it (private before PETSc 3.19's public field).
+inline void IncreaseState(Vec x)
+{
+#if SQUEAL_PETSC_PRIVATE
+  ((PetscObject)x)->state++;
+#else
+  (void)x;
+#endif
 }
 
 // Full copy of a (small) distributed matrix on every rank, for the dense back end.
@@ -148,6 +165,10 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "ThetaIntegrator::SetDelassusMax", delassus_max_, &delassus_max_, nullptr));
   SquealOptionsReal("-delassus_drop", "Sparse W: drop |W_ij| <= this x max_i |W_ij| (0: keep every non-zero)", "ThetaIntegrator::SetDelassusMax",
                     &delassus_drop_, Range::NonNegative(), checks);
+  PetscCall(PetscOptionsBool("-native_arrays",
+                             "Dense back end on one rank: read PETSc-native Vec arrays directly (PETSc 3.18 private layout; "
+                             "false: VecGetArray, the same numbers, ~70 instructions more per step)",
+                             "ThetaIntegrator::Step", native_arrays_, &native_arrays_, nullptr));
   PetscCall(PetscOptionsBool("-fixed_size", "Dense back end: run the step compiled for the model's sizes when available (false: run-time sizes)",
                              "ThetaIntegrator::SetUp", fixed_size_, &fixed_size_, nullptr));
   const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
@@ -522,13 +543,13 @@ PetscErrorCode ThetaIntegrator::Step(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo
   // Small models on one rank: only the array access around the kernel, in a function without the
   // other cases' frame and register saves (measurable on a 3-DOF step of ~550 instructions).
   PetscScalar *u, *du;
-  if (dense_ && size_ == 1 && NativeArray(U, &u) && NativeArray(dU, &du)) {
+  if (dense_ && size_ == 1 && native_arrays_ && NativeArray(U, &u) && NativeArray(dU, &du)) {
     PetscCall(VecSetErrorIfLocked(U, 1)); // as VecGetArray (debug builds of PETSc only)
     PetscCall(VecSetErrorIfLocked(dU, 2));
     // VecRestoreArray's state increase, done before the kernel writes (nothing reads U or dU in
     // between) so that nothing is left to do after the kernel.
-    ((PetscObject)U)->state++;
-    ((PetscObject)dU)->state++;
+    IncreaseState(U);
+    IncreaseState(dU);
     kernel_->Step(u, du, r, &info->contact);
     PetscFunctionReturn(0);
   }

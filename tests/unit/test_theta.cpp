@@ -308,3 +308,47 @@ TEST(Theta, FixedSizeKernelMatchesRunTimeSizesAndSparseBackEnd)
                 (double)V, seen[kOpen], seen[kStick], seen[kSlip], max_gen, max_sparse);
   }
 }
+
+// Issue 22 item 3: the 3-DOF fast path reads PETSc 3.18's private Vec layout; the public-API path
+// (-theta_native_arrays 0, or a build with -DSQUEAL_PETSC_PRIVATE=OFF) must give the same steps to
+// the bit, and both must leave PETSc's cached norms invalid after a step (the state increase).
+TEST(Theta, NativeArraysAndPublicApiGiveTheSameSteps)
+{
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  if (size > 1) GTEST_SKIP() << "the fast path is for one rank";
+  Eigen::VectorXd out[2];
+  for (int native = 0; native < 2; ++native) {
+    ThreeDofParams p; // case 1: separation and slip
+    Model          model;
+    PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, p, model));
+    PetscCallAbort(PETSC_COMM_WORLD, PetscOptionsSetValue(nullptr, "-theta_native_arrays", native ? "1" : "0"));
+    ThetaIntegrator ti(PETSC_COMM_WORLD);
+    PetscCallAbort(PETSC_COMM_WORLD, ti.SetFromOptions());
+    PetscCallAbort(PETSC_COMM_WORLD, PetscOptionsClearValue(nullptr, "-theta_native_arrays"));
+    PetscCallAbort(PETSC_COMM_WORLD, ti.SetUp(model, 0.0109 / 500));
+    Vec U, dU;
+    PetscCallAbort(PETSC_COMM_WORLD, VecDuplicate(model.F, &U));
+    PetscCallAbort(PETSC_COMM_WORLD, VecDuplicate(model.F, &dU));
+    Eigen::VectorXd u0(3), v0(3);
+    u0 << 2e-3, -1e-3, -1e-4, v0 << 0.5, -0.2, 0.1;
+    SetState(U, u0);
+    SetState(dU, v0);
+    Eigen::VectorXd r(3);
+    r.setZero();
+    StepInfo  info;
+    PetscReal before, after;
+    for (PetscInt i = 0; i < 2000; ++i) {
+      PetscCallAbort(PETSC_COMM_WORLD, VecNorm(U, NORM_2, &before)); // cached by PETSc until U's state changes
+      PetscCallAbort(PETSC_COMM_WORLD, ti.Step(U, dU, r, &info));
+      PetscCallAbort(PETSC_COMM_WORLD, VecNorm(U, NORM_2, &after));
+      ASSERT_DOUBLE_EQ(after, test::ToDense(U).norm()) << "stale cached norm at step " << i << " (native " << native << ")";
+    }
+    out[native].resize(6);
+    out[native] << test::ToDense(U), test::ToDense(dU);
+    EXPECT_GT(out[native].head(3).norm(), 0);
+    PetscCallAbort(PETSC_COMM_WORLD, VecDestroy(&U));
+    PetscCallAbort(PETSC_COMM_WORLD, VecDestroy(&dU));
+  }
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(out[0][i], out[1][i]) << "component " << i;
+}

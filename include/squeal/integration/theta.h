@@ -142,6 +142,7 @@ private:
   PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
   std::unique_ptr<DenseStepKernel> kernel_; // (S4)-(S9) on the matrices above, sizes fixed at compile time if possible
   PetscBool       fixed_size_ = PETSC_TRUE; // -theta_fixed_size
+  PetscBool       native_arrays_ = PETSC_TRUE; // -theta_native_arrays (see theta.cpp: SQUEAL_PETSC_PRIVATE)
   AllGather       gather_;
   const Model    *dense_for_ = nullptr;
   Eigen::VectorXd full_U_, full_dU_;
