@@ -545,6 +545,14 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     PetscFunctionReturn(0);
   }
   model_ = &model, eqs_ = &eqs, stab_ = &stab, ti_ = &ti, shoot_ = &shoot;
+  // The branch polls between its own steps and keeps its points; an interrupt raised inside a
+  // flow would lose them.
+  struct Restore {
+    Shooting &s;
+    bool      was;
+    ~Restore() { s.interruptible = was; }
+  } restore{shoot, shoot.interruptible};
+  shoot.interruptible = false;
   res                    = ContinuationResult{};
   res.param_name         = param;
   step_count_ = halvings_ = flows_ = 0;
@@ -693,6 +701,7 @@ PetscErrorCode Continuation::RunSlices(ContinuationResult &res)
     ThetaIntegrator    ti(sub);
     Shooting           sh(sub);
     ShootingResult     sr;
+    sh.interruptible = false; // this slice polls between its points (Run)
     PetscCall(ModelCreateFromOptions(sub, m));
     PetscCall(SetParam(m, b));
     PetscCall(eqs.SetFromOptions());

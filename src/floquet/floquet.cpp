@@ -1,5 +1,6 @@
 #include "squeal/floquet/floquet.h"
 #include "squeal/core/inf.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/shooting/shooting.h"
 
 #include <Eigen/Eigenvalues>
@@ -497,6 +498,12 @@ PetscErrorCode FloquetSolver::MatrixFree(Vec U0, Vec dU0, PetscReal T, std::vect
   // Difference products carry ~fd_step relative noise: ask for no more than that allows.
   PetscCall(EPSSetTolerances(eps, mono_exact_ ? 1e-8 : 1e-6, 200));
   PetscCall(EPSSetFromOptions(eps));
+  PetscCall(EPSMonitorSet(
+    eps,
+    [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *ctx) -> PetscErrorCode {
+      return *static_cast<const bool *>(ctx) ? InterruptPoint(PetscObjectComm((PetscObject)e), "the Floquet eigensolve") : 0;
+    },
+    (void *)&s.interruptible, nullptr));
   PetscCall(EPSSolve(eps));
   PetscCall(EPSGetConverged(eps, &nconv));
   mult.clear();

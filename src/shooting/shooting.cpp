@@ -148,16 +148,16 @@ PetscErrorCode Shooting::SetFromOptions()
   // integration: seconds at FE scale), raised as an error: the best iterate is still written.
   PetscCall(SNESMonitorSet(
     snes_,
-    [](SNES s, PetscInt, PetscReal, void *) -> PetscErrorCode {
-      return InterruptPoint(PetscObjectComm((PetscObject)s), "shooting's Newton iterations");
+    [](SNES s, PetscInt, PetscReal, void *ctx) -> PetscErrorCode {
+      return static_cast<Shooting *>(ctx)->interruptible ? InterruptPoint(PetscObjectComm((PetscObject)s), "shooting's Newton iterations") : 0;
     },
-    nullptr, nullptr));
+    this, nullptr));
   PetscCall(KSPMonitorSet(
     ksp,
-    [](KSP k, PetscInt, PetscReal, void *) -> PetscErrorCode {
-      return InterruptPoint(PetscObjectComm((PetscObject)k), "shooting's Krylov iterations");
+    [](KSP k, PetscInt, PetscReal, void *ctx) -> PetscErrorCode {
+      return static_cast<Shooting *>(ctx)->interruptible ? InterruptPoint(PetscObjectComm((PetscObject)k), "shooting's Krylov iterations") : 0;
     },
-    nullptr, nullptr));
+    this, nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -397,7 +397,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
   PetscReal T = T0, e = kInf;
   PetscInt  k = 0;
   while (k < pre_periods) {
-    PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
+    if (interruptible) PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
     PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
     ++k;
     PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));

@@ -5,6 +5,7 @@
 // (floquet/floquet.cpp).
 #include "squeal/shooting/shooting.h"
 #include "internal.h"
+#include "squeal/core/interrupt.h"
 
 #include <algorithm>
 #include <cmath>
@@ -49,6 +50,8 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   }
   const PetscInt run = flow_stop_ > 0 ? std::min(flow_stop_, steps) : steps;
   for (PetscInt i = 0; i < run; ++i) {
+    // SIGINT/SIGTERM within a period (one flow: minutes at FE scale with many steps).
+    if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a period integration"));
     PetscCall(ti_->Step(U1, dU1, r, &info));
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
@@ -180,6 +183,7 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   const bool   cache     = nc > 0 && factor_mb <= tangent_cache_mb;
   if (cache && (PetscInt)trF_.size() != steps) trF_.assign(steps, {});
   for (PetscInt i = 0; i < steps; ++i) {
+    if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a tangent integration"));
     sd.factor = cache ? &trF_[i] : nullptr;
     sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sc_ = trC_.col(i);
     if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);

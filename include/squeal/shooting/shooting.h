@@ -120,6 +120,9 @@ public:
   // floquet_*: the -shoot_floquet_* options, read here, used by FloquetSolver (floquet/floquet.h).
   PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
+  // SIGINT/SIGTERM raised from inside shooting (Newton and Krylov iterations, pre-periods, flows);
+  // off where the caller polls between its own steps and keeps what it has (continuation).
+  bool      interruptible = true;
   PetscReal period = 0; // -shoot_period: the start period (and the bracket's centre) instead of the linear one; 0: linear
   // -shoot_floquet_bisect_interp: width of phase interval below which the bisection of the phase
   // pieces starts its flows from interpolated states instead of from the start of the period.
