@@ -19,9 +19,9 @@ extern "C" void OnSignal(int sig)
   struct timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now); // async-signal-safe
   if (g_signal == sig) {
-    // A launcher's duplicate (Open MPI's mpiexec delivers SIGTERM to a rank more than once within
-    // a few milliseconds, then SIGKILL one second later) must not cut the clean stop short; a
-    // user's second signal, later than that, gives up on it.
+    // A duplicate within half a second (a scheduler signalling both a process and its process
+    // group; Open MPI 4.1.4's mpiexec was measured to send one SIGTERM per rank) must not cut the
+    // clean stop short; a user's second signal, later than that, gives up on it.
     const double since = (double)(now.tv_sec - g_first.tv_sec) + 1e-9 * (double)(now.tv_nsec - g_first.tv_nsec);
     if (since < 0.5) return;
     std::signal(sig, SIG_DFL);

@@ -3,7 +3,7 @@
 // The application installs handlers once; a signal only sets a flag. Long loops (time steps,
 // Newton iterations, sweep points) poll the flag between steps, stop after the step in hand, and
 // the application writes and closes the results file with what was computed, says so, and exits
-// non-zero. A second signal of the same kind, while the first is being honoured, kills the
+// non-zero. A second signal of the same kind, half a second or more after the first, kills the
 // process the default way (for a run stuck inside one step).
 #pragma once
 
