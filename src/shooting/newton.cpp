@@ -6,6 +6,8 @@
 #include "internal.h"
 #include "squeal/core/inf.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -33,6 +35,7 @@ PetscErrorCode ShootingCallbacks::Jacobian(SNES snes, Vec x, Mat, Mat, void *ctx
     else if (s->jlinear_) PetscCall(s->BuildLinearPreconditioner(x));
     PetscCall(VecCopy(x, s->xbase_));
     PetscCall(s->SetDeflationBase(snes, x));
+    if (s->jlinear_) PetscCall(s->RecycleSetUp(x));
     PetscFunctionReturn(0);
   }
   // The base point of the products: reuse the residual SNES just computed there.
@@ -53,10 +56,18 @@ PetscErrorCode ShootingCallbacks::DenseSolve(PC pc, Vec v, Vec y)
   PetscFunctionBeginUser;
   PetscCall(PCShellGetContext(pc, &s));
   PetscCall(s->ToNatural(v, z));
-  z = s->jlu_.solve(z);
-  if (s->defl_m_ > 0) z /= s->defl_m_; // (m J)^-1: the rank-one part of the deflated Jacobian is left to GMRES
-  PetscCall(s->FromNatural(z, y));
+  Eigen::MatrixXd out;
+  s->BasePreconditioner(z, out);
+  // The recycled directions' correction: exact on span(J S) (RecycleSetUp).
+  if (s->rec_Zc_.cols() > 0) out.noalias() += s->rec_Zc_ * (s->rec_Uc_.transpose() * z);
+  PetscCall(s->FromNatural(out.col(0), y));
   PetscFunctionReturn(0);
+}
+
+void Shooting::BasePreconditioner(const Eigen::MatrixXd &z, Eigen::MatrixXd &y) const
+{
+  y = jlu_.solve(z);
+  if (defl_m_ > 0) y /= defl_m_; // (m J)^-1: the rank-one part of the deflated Jacobian is left to GMRES
 }
 
 PetscErrorCode ShootingCallbacks::Mult(Mat J, Vec v, Vec y)
@@ -73,6 +84,15 @@ PetscErrorCode ShootingCallbacks::Mult(Mat J, Vec v, Vec y)
     PetscCall(VecDot(s->wdU_, s->deflgdU_, &b));
     PetscCall(VecScale(y, s->defl_m_));
     PetscCall(VecAXPY(y, a + b, s->deflF_));
+  }
+  if (s->jlinear_ && s->recycle > 0) {
+    // The pairs (w, J w) of this solve: the next Newton iteration recycles their Ritz vectors.
+    Eigen::VectorXd w, Jw;
+    PetscCall(s->ToNatural(v, w));
+    PetscCall(s->ToNatural(y, Jw));
+    if ((PetscInt)s->rec_w_.size() >= 4 * s->recycle) s->rec_w_.erase(s->rec_w_.begin()), s->rec_y_.erase(s->rec_y_.begin());
+    s->rec_w_.push_back(std::move(w));
+    s->rec_y_.push_back(std::move(Jw));
   }
   PetscFunctionReturn(0);
 }
@@ -341,6 +361,125 @@ PetscErrorCode Shooting::SetDeflationBase(SNES snes, Vec x)
   PetscFunctionReturn(0);
 }
 
+// Krylov subspace recycling for the sequence of bordered systems (Parks, de Sturler et al., SIAM
+// J. Sci. Comput. 28 (2006) 1651, in the form of a preconditioner update): with S orthonormal
+// and Y = J S exactly (one block tangent integration: the columns share the stored flow and each
+// step's factor, and run as matrix-matrix products, so k columns cost a few one-column products),
+//   P_new^-1 z = P^-1 z + (S - P^-1 Y) (Y^T Y)^+ Y^T z
+// maps J S c to S c: the preconditioned operator is the identity on span(S). GMRES then has to
+// explore only what the new iterate adds. S is the span of the earlier solves' Krylov directions
+// (the slowly converging ones recur from one Newton iteration to the next); it is only a subspace,
+// so a stale S costs iterations, never accuracy.
+void Shooting::RecycleSelect()
+{
+  using Eigen::Index;
+  using Eigen::MatrixXd;
+  const Index n = 2 * N_ + 1;
+  // Every pair (w, J w) known at the last iterate: the recycled basis with its exact products, then
+  // the last solve's Krylov products.
+  Index m = rec_S_.rows() == n ? rec_S_.cols() : 0;
+  for (const auto &w : rec_w_) m += w.size() == n;
+  if (m == 0) return;
+  MatrixXd W(n, m), Y(n, m);
+  Index    k = 0;
+  if (rec_S_.rows() == n && rec_YS_.cols() == rec_S_.cols()) W.leftCols(rec_S_.cols()) = rec_S_, Y.leftCols(rec_S_.cols()) = rec_YS_, k = rec_S_.cols();
+  for (size_t i = 0; i < rec_w_.size(); ++i)
+    if (rec_w_[i].size() == n) W.col(k) = rec_w_[i], Y.col(k) = rec_y_[i], ++k;
+  rec_w_.clear(), rec_y_.clear();
+  // Orthonormal Q spanning W (Gram-Schmidt twice, dependent columns dropped).
+  MatrixXd Q(n, k), JQ;
+  Index    q = 0;
+  for (Index j = 0; j < k; ++j) {
+    Eigen::VectorXd v  = W.col(j);
+    const PetscReal n0 = v.norm();
+    if (!(n0 > 0)) continue;
+    for (int pass = 0; pass < 2; ++pass) v -= Q.leftCols(q) * (Q.leftCols(q).transpose() * v);
+    const PetscReal nv = v.norm();
+    if (!(nv > 1e-8 * n0)) continue;
+    Q.col(q++) = v / nv;
+  }
+  Q.conservativeResize(n, q);
+  // J Q from the pairs: Q = W X with X the least-squares coefficients (W has full column rank on
+  // the kept columns; the dropped ones are in their span).
+  const MatrixXd X = W.colPivHouseholderQr().solve(Q);
+  JQ               = Y * X;
+  // Rayleigh-Ritz for the preconditioned operator P^-1 J on span(Q): GMRES is slowed by the
+  // eigenvalues away from the cluster at 1; recycle the Ritz vectors of the largest |theta - 1|.
+  MatrixXd PJQ;
+  BasePreconditioner(JQ, PJQ);
+  const MatrixXd                   B = Q.transpose() * PJQ;
+  Eigen::ComplexEigenSolver<MatrixXd> es(B, true);
+  std::vector<Index>               order(q);
+  for (Index i = 0; i < q; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](Index a, Index b) {
+    return std::abs(es.eigenvalues()(a) - 1.0) > std::abs(es.eigenvalues()(b) - 1.0);
+  });
+  // Real and imaginary parts of each chosen vector (a conjugate pair spans a real plane).
+  MatrixXd G(q, 2 * q);
+  Index    g = 0;
+  for (Index i = 0; i < q && g < recycle; ++i) {
+    const Eigen::VectorXcd y = es.eigenvectors().col(order[i]);
+    for (int part = 0; part < 2 && g < recycle; ++part) {
+      Eigen::VectorXd v = part == 0 ? Eigen::VectorXd(y.real()) : Eigen::VectorXd(y.imag());
+      const PetscReal n0 = v.norm();
+      if (!(n0 > 1e-12 * y.norm())) continue;
+      for (int pass = 0; pass < 2; ++pass) v -= G.leftCols(g) * (G.leftCols(g).transpose() * v);
+      if (!(v.norm() > 1e-8 * n0)) continue;
+      G.col(g++) = v.normalized();
+    }
+  }
+  rec_S_ = Q * G.leftCols(g);
+}
+
+PetscErrorCode Shooting::JacobianBlock(Vec x, const Eigen::MatrixXd &Z, Eigen::MatrixXd &Y)
+{
+  const Eigen::Index n2 = 2 * N_;
+  Eigen::MatrixXd    dZ1;
+  PetscFunctionBeginUser;
+  // The block form of Mult: J z = (dZ(T) - dZ0, g^T dZ0), deflated m J z + (grad m . z) F.
+  PetscCall(TangentFlow(x, Z.topRows(n2), Z.row(n2), dZ1));
+  Y.resize(n2 + 1, Z.cols());
+  Y.topRows(n2) = dZ1 - Z.topRows(n2);
+  if (anchored_) {
+    Eigen::VectorXd g(n2);
+    PetscCall(Full(GaU_, g.head(N_)));
+    PetscCall(Full(GadU_, g.tail(N_)));
+    Y.row(n2) = g.transpose() * Z.topRows(n2);
+  } else Y.row(n2).setZero();
+  if (defl_m_ > 0) {
+    Eigen::VectorXd gm(n2), F;
+    PetscCall(Full(deflgU_, gm.head(N_)));
+    PetscCall(Full(deflgdU_, gm.tail(N_)));
+    PetscCall(ToNatural(deflF_, F));
+    Y *= defl_m_;
+    Y.noalias() += F * (gm.transpose() * Z.topRows(n2));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::RecycleSetUp(Vec x)
+{
+  PetscFunctionBeginUser;
+  rec_Zc_.resize(0, 0), rec_Uc_.resize(0, 0);
+  if (recycle <= 0) PetscFunctionReturn(0);
+  RecycleSelect();
+  if (rec_S_.cols() == 0) PetscFunctionReturn(0);
+  Eigen::MatrixXd PY;
+  PetscCall(JacobianBlock(x, rec_S_, rec_YS_));
+  const Eigen::MatrixXd &Y = rec_YS_;
+  recycled_columns_ += rec_S_.cols();
+  // (Y^T Y)^+ Y^T = V Sigma^-1 U^T on the singular values above round-off.
+  Eigen::BDCSVD<Eigen::MatrixXd> svd(Y, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd         &sv = svd.singularValues();
+  Eigen::Index                   r  = 0;
+  while (r < sv.size() && sv[r] > 1e-12 * sv[0]) ++r;
+  if (r == 0) PetscFunctionReturn(0);
+  BasePreconditioner(Y, PY);
+  rec_Zc_ = (rec_S_ - PY) * svd.matrixV().leftCols(r) * sv.head(r).cwiseInverse().asDiagonal();
+  rec_Uc_ = svd.matrixU().leftCols(r);
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
 {
   PetscReal nx, nv;
@@ -431,6 +570,11 @@ PetscErrorCode Shooting::SetUpNewton()
       PetscCall(PCShellSetContext(pc, this));
       PetscCall(PCShellSetApply(pc, ShootingCallbacks::DenseSolve));
       PetscCall(PCShellSetName(pc, "LU of the bordered Jacobian of the sliding linearisation (-shoot_linear_pc)"));
+      // Right preconditioning: GMRES then minimises the true residual, which Eisenstat-Walker's
+      // tolerance is about, whatever the (recycled, changing) preconditioner does to its scale.
+      PetscBool side_given = PETSC_FALSE;
+      PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-ksp_pc_side", &side_given));
+      if (!side_given && recycle > 0) PetscCall(KSPSetPCSide(ksp, PC_RIGHT));
     } else {
       PetscBool shell;
       PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));

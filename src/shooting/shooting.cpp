@@ -99,6 +99,10 @@ PetscErrorCode Shooting::SetFromOptions()
                              "Shooting", tangent_cache_mb, &tangent_cache_mb, nullptr));
   PetscCall(PetscOptionsInt("-linear_pc_max", "Largest 2N for -shoot_linear_pc (dense 2N x 2N matrices)", "Shooting", linear_pc_max,
                             &linear_pc_max, nullptr));
+  PetscCall(PetscOptionsInt("-recycle",
+                            "With -shoot_linear_pc: recycle up to this many Krylov directions of the earlier linear solves, whose exact "
+                            "products (one block tangent integration per Newton iteration) make the preconditioner exact on them (0: off)",
+                            "Shooting", recycle, &recycle, nullptr));
   SquealOptionsReal("-floquet_bisect_interp",
                     "Phase average: bisection intervals of the phase at most this wide start their flows from the mean of the "
                     "two ends' states before their first differing status change (0: every flow from the start of the period)",
@@ -120,6 +124,7 @@ PetscErrorCode Shooting::SetFromOptions()
              "option -shoot_floquet_phases = %" PetscInt_FMT ": expected >= 0", floquet_phases);
   PetscCheck(steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
   PetscCheck(pre_periods >= 0, comm_, kErrInput, "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
+  PetscCheck(recycle >= 0, comm_, kErrInput, "option -shoot_recycle = %" PetscInt_FMT ": expected >= 0", recycle);
   PetscCheck(tangent_cache_mb >= 0, comm_, kErrInput, "option -shoot_tangent_cache_mb = %g: expected >= 0", (double)tangent_cache_mb);
 
   SNESLineSearch ls;
@@ -333,7 +338,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
-  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = 0;
+  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = tangent_columns_ = recycled_columns_ = 0;
   pre_T_       = T0;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
   PetscCall(ti_->SetUp(*model_, T0 / steps));
@@ -356,6 +361,8 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.flow_evaluations    = evaluations_ + (partial_steps_ + steps - 1) / steps;
   res.floquet_evaluations = (evaluations_ * steps + partial_steps_ - newton_steps + steps - 1) / steps;
   res.tangent_evaluations = tangents_;
+  res.tangent_columns     = tangent_columns_;
+  res.recycled_columns    = recycled_columns_;
   res.setups              = setups_;
   res.pre_periods         = pre_done_;
   res.pre_period          = pre_T_;
@@ -485,10 +492,10 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   PetscCall(PetscViewerASCIIPrintf(viewer,
                                    "shooting: %s in %" PetscInt_FMT " Newton iteration(s) (%" PetscInt_FMT
                                    " corrections applied), %" PetscInt_FMT " period integrations (Newton %" PetscInt_FMT
-                                   ", Floquet %" PetscInt_FMT "; %" PetscInt_FMT " of them linear tangent integrations), %" PetscInt_FMT
-                                   " step set-ups\n",
+                                   ", Floquet %" PetscInt_FMT "; %" PetscInt_FMT " of them linear tangent integrations of %" PetscInt_FMT
+                                   " columns in all, %" PetscInt_FMT " of them recycled directions), %" PetscInt_FMT " step set-ups\n",
                                    res.reason.c_str(), res.iterations, res.corrections, res.flow_evaluations, res.newton_evaluations,
-                                   res.floquet_evaluations, res.tangent_evaluations, res.setups));
+                                   res.floquet_evaluations, res.tangent_evaluations, res.tangent_columns, res.recycled_columns, res.setups));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));

@@ -194,6 +194,7 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   dZ1.topRows(N)    = dU;
   dZ1.bottomRows(N) = ddU;
   ++evaluations_, ++tangents_;
+  tangent_columns_ += dZ0.cols();
   PetscCall(PetscLogEventEnd(shoot_ev::tangent, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }

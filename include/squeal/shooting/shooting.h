@@ -47,6 +47,9 @@ struct ShootingResult {
   // flow_evaluations counts partial flows pro rata (steps / N_s, rounded up). Of them: linear integrations of the step tangents (Jacobian products and exact
   // monodromies); set-ups of the step matrices (one per new period).
   PetscInt                             tangent_evaluations = 0, setups = 0;
+  // Columns propagated by those tangent integrations (a block integration of k columns counts k),
+  // and of them the recycled subspace's (-shoot_recycle), one block per Newton iteration.
+  PetscInt                             tangent_columns = 0, recycled_columns = 0;
   // ... and how they split: Newton (residuals and Jacobians up to convergence) and Floquet
   // (phase pieces, their tangents, the Jacobian at Z0), each rounded up.
   PetscInt                             newton_evaluations = 0, floquet_evaluations = 0;
@@ -139,6 +142,13 @@ public:
   PetscBool linear_pc     = PETSC_TRUE;
   PetscBool ew            = PETSC_TRUE; // -shoot_ew: inexact Newton for GMRES on products (Eisenstat-Walker)
   PetscInt  linear_pc_max = 6000;
+  // -shoot_recycle: with -shoot_linear_pc, keep up to this many directions of the earlier Krylov
+  // solves; at each Newton iteration their exact products (one block tangent integration, at the
+  // price of a few one-column ones) correct the preconditioner to be exact on them (0: off).
+  // Off by default: on the 3-DOF cycles it saves a quarter of the tangent integrations, but on the
+  // 562-DOF pad cycle 8 or 32 recycled directions cut GMRES from 89 to 79 or 76 iterations in all and
+  // the blocks ate the saving (docs/records.md, 2026-11-25).
+  PetscInt  recycle = 0;
   PetscInt  floquet_block = 16, floquet_max_dim = 640; // -shoot_floquet_block, -shoot_floquet_max_dim
   PetscReal floquet_tol   = 1e-8;                      // -shoot_floquet_tol
   PetscBool floquet_monitor = PETSC_FALSE;             // -shoot_floquet_monitor
@@ -200,6 +210,15 @@ private:
   bool            jlinear_ = false; // ... or the linearised-monodromy preconditioner (-shoot_linear_pc)
   Eigen::MatrixXd Mlin_;            // its monodromy, built at the first Jacobian of a solve
   PetscErrorCode  BuildLinearPreconditioner(Vec x);
+  // Recycled subspace (newton.cpp): P^-1 z + Zc Uc^T z is exact on span(S), S the orthonormal
+  // recycled directions (natural order, 2N + 1 rows), from Y = J S computed in one block product.
+  Eigen::MatrixXd              rec_S_, rec_YS_, rec_Zc_, rec_Uc_; // rec_YS_ = J S at the last Newton iterate
+  std::vector<Eigen::VectorXd> rec_w_, rec_y_; // the products (w, J w) of the solve under way
+  PetscInt                     tangent_columns_ = 0, recycled_columns_ = 0;
+  PetscErrorCode               RecycleSetUp(Vec x); // at each Jacobian, after the base preconditioner
+  void                         RecycleSelect();      // S from the last solve's products (Ritz vectors)
+  PetscErrorCode               JacobianBlock(Vec x, const Eigen::MatrixXd &Z, Eigen::MatrixXd &Y); // natural order, deflation included
+  void                         BasePreconditioner(const Eigen::MatrixXd &z, Eigen::MatrixXd &y) const;
   VecH            jx_;              // where Jd_ was built
   AllGather       gather_;
   PetscMPIInt     size_ = 1;
