@@ -192,7 +192,8 @@ PetscErrorCode ReadColumnsRow(MPI_Comm comm, const char *path, int lineno, std::
   for (int d = 0; d < 3; ++d)
     for (size_t e = 0; e < count[d]; ++e, at += 2) {
       PetscCheck(v[at] == std::floor(v[at]) && v[at] >= 0 && v[at] < (double)PETSC_MAX_INT, comm, PETSC_ERR_FILE_UNEXPECTED,
-                 "contact table '%s', line %d: DOF index %g is not a non-negative integer", path, lineno, v[at]);
+                 "contact table '%s', line %d: DOF index %.17g is not a non-negative integer below %" PetscInt_FMT, path,
+                 lineno, v[at], (PetscInt)PETSC_MAX_INT);
       pt.cols[d].emplace_back((PetscInt)v[at], v[at + 1]);
     }
   set.points.push_back(pt);
@@ -276,8 +277,11 @@ PetscErrorCode ReadContactTable(MPI_Comm comm, const char *path, ContactSet &set
     ContactPoint pt;
     ContactNode  nd;
     for (int k = 0; k < 3; ++k) {
-      PetscCheck(v[k] == std::floor(v[k]), comm, PETSC_ERR_FILE_UNEXPECTED,
-                 "contact table '%s', line %d: DOF index %g is not an integer", path, lineno, v[k]);
+      // Range-checked before the cast: a value beyond PetscInt wrapped (to -2147483648 for 2^32) and the
+      // model's range check then named that number instead of the one in the file.
+      PetscCheck(v[k] == std::floor(v[k]) && v[k] >= 0 && v[k] < (double)PETSC_MAX_INT, comm, PETSC_ERR_FILE_UNEXPECTED,
+                 "contact table '%s', line %d: DOF index %.17g is not a non-negative integer below %" PetscInt_FMT, path, lineno,
+                 v[k], (PetscInt)PETSC_MAX_INT);
       nd.dofs[k] = (PetscInt)v[k];
     }
     pt.nodes        = {nd};

@@ -84,7 +84,8 @@ PetscErrorCode Shooting::SetFromOptions()
                              "Shooting", ew, &ew, nullptr));
   SquealOptionsReal("-pre_tol",
                     "Stop the -shoot_pre_periods early once the period-corrected return distance |Z(T) - Z0 + dt G| / |Z(T)| is "
-                    "below this (0: run them all)",
+                    "below this and two successive returns of the motion to a Poincare section give periods within 1 % of "
+                    "each other; beyond 5 % of T that period becomes the start period and the bracket's centre (0: run them all)",
                     "Shooting", &pre_tol, Range::NonNegative(), checks);
   SquealOptionsReal("-deflate_power",
                     "Deflate the sliding equilibrium Z_e (a trivial root: periodic with any T): Newton on m(Z0) H with "
@@ -340,6 +341,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   T0_          = T0;
   evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = tangent_columns_ = recycled_columns_ = 0;
   pre_T_       = T0;
+  pre_measured_ = 0, recentred_ = false;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
   PetscCall(ti_->SetUp(*model_, T0 / steps));
   T_setup_ = T0;
@@ -366,6 +368,9 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.setups              = setups_;
   res.pre_periods         = pre_done_;
   res.pre_period          = pre_T_;
+  res.pre_measured_period = pre_measured_;
+  res.bracket_centre      = T0_;
+  res.bracket_recentred   = recentred_;
   // From the energy estimate, Newton can wander where the cycle's shape is far from the unstable
   // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
   const bool collapsed = res.reason.find("collapsed") != std::string::npos && !(deflate_power > 0);
@@ -375,8 +380,12 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s%s",
              res.reason.c_str(), (double)res.residual, (double)res.period,
              collapsed ? "; keep Newton off the equilibrium with -shoot_deflate_power 2" : "",
-             bracket ? "; the cycle's period may be far from the linear one (period-doubled or strongly nonlinear): take the settled "
-                       "period of a transient (-analyses transient) and start from it with -shoot_period"
+             bracket ? (recentred_ ? "; it had been recentred on the period the pre-periods' motion returned with, which had not yet "
+                                     "settled: more -shoot_pre_periods (a smaller -shoot_pre_tol), or take the settled period of a "
+                                     "transient (-analyses transient) and start from it with -shoot_period"
+                        : "; the cycle's period may be far from the linear one (period-doubled or strongly nonlinear): run "
+                          "-shoot_pre_periods (e.g. 100), which measure the period of the motion and recentre the bracket on it, or "
+                          "take the settled period of a transient (-analyses transient) and start from it with -shoot_period")
              : res.reason.find("Krylov") != std::string::npos ? ""
              : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
              : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
@@ -392,7 +401,8 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
   // stick), periods of the flow bring the start into the attracting cycle's neighbourhood. After
   // each period the return distance is read with the period corrected to first order along the
   // end point's vector field G: dt = -G.(Z1 - Z)/|G|^2, e = |Z1 - Z + dt G| / |Z1| (the residual
-  // Newton would see at T + dt). It stops once e < -shoot_pre_tol and starts Newton at T + dt.
+  // Newton would see at T + dt). It stops once e < -shoot_pre_tol (and the period measured below
+  // holds) and starts Newton at T + dt.
   VecH            U, dU;
   Eigen::VectorXd r;
   PetscBool       mon = PETSC_FALSE;
@@ -401,10 +411,110 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
   PetscCall(VecDuplicate(dU0, dU.out()));
   PetscCall(VecCopy(U0, U));
   PetscCall(VecCopy(dU0, dU));
+
+  // The first-order correction only reaches a cycle within a few per cent of T0 (case 1 at mu = 5
+  // settles at 2.14 T_lin, beyond the bracket (T0/2, 2 T0)). So the motion's own period is measured
+  // along the way: the section through a state Z_r of the flow normal to G(Z_r), and its upward
+  // crossings (the states interpolated linearly in the step) that come back within kReturn of the
+  // largest excursion from Z_r since. A cycle may loop several times near Z_r before it closes (case
+  // 1 at mu = 5: twice, the loops 2 % apart): at each crossing, of the last four (Z_r the first) the
+  // loop count m is the smallest of 2, 3 whose returns are kLoop closer than one loop's (as
+  // -analyses transient reads it), else 1, and the period the time of the last m crossings. Two
+  // successive periods within kAgree with the same m make the measurement; beyond the first-order
+  // correction's reach the start period and the bracket move onto it. A section the motion has
+  // drifted away from (no crossing for 4 flow periods) restarts at the current state.
+  constexpr PetscReal kReturn = 0.2, kAgree = 1e-2, kReach = 0.05, kLoop = 0.1;
+  constexpr int       kRing   = 4;
+  VecH                ZrU, ZrdU, GrU, GrdU, mU, mdU, pU, pdU, CU[kRing], CdU[kRing];
+  for (VecH *v : {&ZrU, &GrU, &mU, &pU, &CU[0], &CU[1], &CU[2], &CU[3]}) PetscCall(VecDuplicate(U0, v->out()));
+  for (VecH *v : {&ZrdU, &GrdU, &mdU, &pdU, &CdU[0], &CdU[1], &CdU[2], &CdU[3]}) PetscCall(VecDuplicate(dU0, v->out()));
+  struct Section {
+    bool      ref = false;
+    PetscInt  n   = 0;                       // crossings so far, Z_r the first; crossing i in slot i % kRing
+    PetscReal t = 0, h = 0, s = 0, dmax = 0; // time since Z_r, step, last G_r.(Z - Z_r), largest |Z - Z_r|
+    PetscReal tc[kRing] = {0};
+    std::vector<std::pair<PetscReal, int>> periods; // (period, loops) per crossing from the fourth on
+  } sec;
+  auto set_ref = [&](Vec U1, Vec dU1, const Eigen::VectorXd &rr) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    PetscCall(VecCopy(U1, ZrU));
+    PetscCall(VecCopy(dU1, ZrdU));
+    PetscCall(VecCopy(U1, CU[0]));
+    PetscCall(VecCopy(dU1, CdU[0]));
+    PetscCall(VectorField(U1, dU1, rr, GrU, GrdU));
+    sec.ref = true, sec.n = 1, sec.t = sec.s = sec.dmax = sec.tc[0] = 0;
+    PetscFunctionReturn(0);
+  };
+  // |C_a - C_b| for the crossings a and b back from the last (0: the last).
+  auto dist = [&](int a, int b, PetscReal *d) -> PetscErrorCode {
+    const int i = (int)((sec.n - 1 - a) % kRing), j = (int)((sec.n - 1 - b) % kRing);
+    PetscReal n1, n2;
+    PetscFunctionBeginUser;
+    PetscCall(VecWAXPY(mU, -1.0, CU[i], CU[j]));
+    PetscCall(VecWAXPY(mdU, -1.0, CdU[i], CdU[j]));
+    PetscCall(VecNorm(mU, NORM_2, &n1));
+    PetscCall(VecNorm(mdU, NORM_2, &n2));
+    *d = std::hypot(n1, n2);
+    PetscFunctionReturn(0);
+  };
+  on_step_ = [&](PetscInt, Vec U1, Vec dU1, const Eigen::VectorXd &rr) -> PetscErrorCode {
+    PetscScalar a1, a2;
+    PetscReal   n1, n2;
+    PetscFunctionBeginUser;
+    if (!sec.ref || sec.t - sec.tc[(sec.n - 1) % kRing] > 4 * steps * sec.h) PetscCall(set_ref(U1, dU1, rr));
+    else {
+      sec.t += sec.h;
+      PetscCall(VecWAXPY(mU, -1.0, ZrU, U1));
+      PetscCall(VecWAXPY(mdU, -1.0, ZrdU, dU1));
+      // One reduction for the four.
+      PetscCall(VecDotBegin(mU, GrU, &a1));
+      PetscCall(VecDotBegin(mdU, GrdU, &a2));
+      PetscCall(VecNormBegin(mU, NORM_2, &n1));
+      PetscCall(VecNormBegin(mdU, NORM_2, &n2));
+      PetscCall(VecDotEnd(mU, GrU, &a1));
+      PetscCall(VecDotEnd(mdU, GrdU, &a2));
+      PetscCall(VecNormEnd(mU, NORM_2, &n1));
+      PetscCall(VecNormEnd(mdU, NORM_2, &n2));
+      const PetscReal s = PetscRealPart(a1 + a2), d = std::hypot(n1, n2);
+      sec.dmax          = std::max(sec.dmax, d);
+      if (sec.s < 0 && s >= 0 && d < kReturn * sec.dmax) {
+        const PetscReal th = sec.s / (sec.s - s); // of the step, from the previous state
+        const int       j  = (int)(sec.n % kRing);
+        PetscCall(VecAXPBYPCZ(CU[j], 1 - th, th, 0.0, pU, U1));
+        PetscCall(VecAXPBYPCZ(CdU[j], 1 - th, th, 0.0, pdU, dU1));
+        sec.tc[j] = sec.t - (1 - th) * sec.h;
+        if (++sec.n >= kRing) {
+          PetscReal d01, d12, d23, d02, d13, d03;
+          PetscCall(dist(0, 1, &d01));
+          PetscCall(dist(1, 2, &d12));
+          PetscCall(dist(2, 3, &d23));
+          PetscCall(dist(0, 2, &d02));
+          PetscCall(dist(1, 3, &d13));
+          PetscCall(dist(0, 3, &d03));
+          const PetscReal r1 = std::max(std::min(d01, d12), std::min(std::max(d01, d12), d23)); // the median
+          const int       m  = std::max(d02, d13) < kLoop * r1 ? 2 : d03 < kLoop * r1 ? 3 : 1;
+          sec.periods.push_back({sec.tc[j] - sec.tc[(sec.n - 1 - m) % kRing], m});
+        }
+      }
+      sec.s = s;
+    }
+    PetscCall(VecCopy(U1, pU));
+    PetscCall(VecCopy(dU1, pdU));
+    PetscFunctionReturn(0);
+  };
+  struct Unhook {
+    std::function<PetscErrorCode(PetscInt, Vec, Vec, const Eigen::VectorXd &)> &f;
+    ~Unhook() { f = nullptr; } // also on an error: the hook refers to this frame
+  } unhook{on_step_};
+
   PetscReal T = T0, e = kInf;
   PetscInt  k = 0;
+  size_t    seen = 0;
+  PetscReal Tm   = 0;
+  int       loops = 1;
   while (k < pre_periods) {
     if (interruptible) PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
+    sec.h = T / steps;
     PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
     ++k;
     PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
@@ -430,10 +540,33 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
     if (mon)
       PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
                             (double)(T + dt)));
-    // The corrected period is used from here on only while it stays near T0: far from the cycle
-    // the first-order correction can be large and meaningless.
-    if (std::abs(dt) < 0.05 * T0) T += dt;
-    if (e < pre_tol) break;
+    // Tm: the last measured period, once it agrees with the one before (0: not, or not yet).
+    const size_t n = sec.periods.size();
+    if (n > seen) {
+      seen            = n;
+      const auto &p = sec.periods;
+      Tm = n >= 2 && p[n - 1].second == p[n - 2].second && std::abs(p[n - 1].first - p[n - 2].first) < kAgree * p[n - 1].first
+           ? p[n - 1].first
+           : 0;
+      if (Tm > 0) pre_measured_ = Tm, loops = p[n - 1].second;
+    }
+    if (Tm > 0 && std::abs(Tm - T) > kReach * T) {
+      PetscCall(PetscPrintf(comm_,
+                            "shooting: after %" PetscInt_FMT " pre-period(s) the motion returns to its Poincare section every %.7f s "
+                            "(%d loop(s), %.3f x the start period %.7f s): start period and bracket (T/2, 2 T) = (%.6g, %.6g) s moved there\n",
+                            k, (double)Tm, loops, (double)(Tm / T0), (double)T0, (double)(0.5 * Tm), (double)(2 * Tm)));
+      T = T0_ = Tm, recentred_ = true;
+      continue; // this period's return distance was read at the old period
+    }
+    // The corrected period is used from here on only while it stays near the bracket's centre: far
+    // from the cycle the first-order correction can be large and meaningless.
+    if (std::abs(dt) < kReach * T0_) T += dt;
+    // Not before the measured period holds (two returns agree, and it is near T): early in a growing
+    // motion the flow can come back close at the linear period (case 1 at mu = 5: 2.4e-2 after 2
+    // periods) and settle elsewhere, and a single return can still read one loop of a cycle that
+    // closes after two (there, stopping at the first return near T sent Newton to the unstable
+    // one-loop cycle at 0.0096261 s instead of the attracting one at 0.0193433 s).
+    if (e < pre_tol && Tm > 0) break;
   }
   PetscCall(PetscPrintf(comm_,
                         "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
@@ -499,6 +632,12 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));
+  if (res.bracket_recentred)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "start period and bracket (T/2, 2 T) = (%.6g, %.6g) s moved to the period the pre-periods' motion "
+                                     "returned with, %.7f s (their last measurement %.7f s)\n",
+                                     0.5 * (double)res.bracket_centre, 2 * (double)res.bracket_centre, (double)res.bracket_centre,
+                                     (double)res.pre_measured_period));
   std::string p2p;
   for (size_t j = 0; j < res.peak_to_peak.size() && j < 12; ++j) {
     char b[32];

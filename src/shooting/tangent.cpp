@@ -55,6 +55,7 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
     PetscCall(ti_->Step(U1, dU1, r, &info));
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
+    if (on_step_) PetscCall(on_step_(i, U1, dU1, r));
     if (record_) {
       PetscCall(Full(U1, trU_.col(i + 1)));
       PetscCall(Full(dU1, trdU_.col(i + 1)));

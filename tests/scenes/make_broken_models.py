@@ -10,6 +10,7 @@ Reads MODEL_DIR/{M,K}.bin (PETSc binary AIJ) and writes, next to them:
   M_nonsym.mtx   M with an off-diagonal entry on one side only (non-symmetric)
   M_4x4.mtx      a 4x4 mass matrix (size mismatch with the 3x3 K)
   contacts_dof7.txt  contact table naming DOF 7 (out of range for 3 DOFs)
+  contacts_dof_2e32.txt  contact table naming DOF 4294967296 (beyond PetscInt: wrapped before the fix)
   M_singular.mtx     M with positive diagonal, singular (rows 0 and 1 equal)
   M_indefinite.mtx   M with positive diagonal, indefinite (eigenvalues 3, -1, 1)
   contacts_dof_twice.txt  a contact row using DOF 0 twice
@@ -145,6 +146,9 @@ def main():
     with open(os.path.join(d, "contacts_dof7.txt"), "w") as f:
         f.write("# contact table with a DOF index out of range (3 DOFs: 0..2)\n")
         f.write("0 1 7  1 0 0  0 0 1  1 0\n")
+    with open(os.path.join(d, "contacts_dof_2e32.txt"), "w") as f:
+        f.write("# contact table with a DOF index of 2^32 (a 32-bit PetscInt cast made it -2147483648)\n")
+        f.write("4294967296 1 2  1 0 0  0 0 1  1 0\n")
 
 
 if __name__ == "__main__":

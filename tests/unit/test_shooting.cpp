@@ -664,6 +664,57 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
   }
 }
 
+// Issue 20 item 4: case 1 at mu = 5 settles on a cycle of 2.14 T_lin (two loops per period, their
+// returns 2 % apart), beyond the bracket (T0/2, 2 T0) around the linear period, which Newton leaves from the
+// energy estimate. The pre-periods measure the period of their motion at its returns to a Poincare
+// section and move the start period and the bracket onto it; Newton must then converge there, to
+// the period of a long transient at the same step (independent: mean-crossings of DOF 0 read by
+// TransientAnalysis's summary, not the shooting's section).
+TEST(Shooting, PrePeriodsMeasureAPeriodBeyondTheBracketAndConvergeThere)
+{
+  ThreeDofParams p; // case 1
+  p.mu = 5;
+  {
+    Problem pr(p);
+    ASSERT_TRUE(pr.est.found);
+    pr.sh.floquet = PETSC_FALSE;
+    ShootingResult sr;
+    PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
+    const PetscErrorCode e = pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr);
+    PetscPopErrorHandler();
+    EXPECT_NE(e, 0);
+    EXPECT_NE(sr.reason.find("the period left"), std::string::npos) << sr.reason;
+    EXPECT_FALSE(sr.bracket_recentred);
+  }
+  Problem pr(p);
+  ASSERT_TRUE(pr.est.found);
+  pr.sh.floquet     = PETSC_FALSE;
+  pr.sh.pre_periods = 100;
+  ShootingResult sr;
+  ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0) << sr.reason;
+  EXPECT_TRUE(sr.converged);
+  EXPECT_TRUE(sr.bracket_recentred);
+  EXPECT_LT(sr.pre_periods, 100);
+  EXPECT_GT(sr.period, 2 * pr.est.T0); // outside the linear period's bracket
+  EXPECT_NEAR(sr.pre_measured_period / sr.period, 1.0, 1e-2);
+  EXPECT_NEAR(sr.bracket_centre / sr.period, 1.0, 1e-2);
+
+  TransientAnalysis ta(PETSC_COMM_WORLD);
+  ThetaIntegrator   ti2(PETSC_COMM_WORLD);
+  ASSERT_EQ(ta.SetFromOptions(), 0);
+  ASSERT_EQ(ti2.SetFromOptions(), 0);
+  ta.h       = sr.period / pr.sh.steps; // equal steps: the discrete cycles are the same
+  ta.periods = 400;                     // of T_lin; settled (state return < 1e-8) well before
+  TransientResult tr;
+  ASSERT_EQ(ta.Run(pr.model, pr.eq, pr.stab, ti2, tr), 0);
+  if (!Rank0()) return;
+  EXPECT_TRUE(tr.summary.settled);
+  EXPECT_NEAR(tr.summary.period / sr.period, 1.0, 1e-6);
+  for (int j = 0; j < 3; ++j) EXPECT_NEAR(tr.summary.peak_to_peak[j] / sr.peak_to_peak[j], 1.0, 1e-3) << "DOF " << j;
+  EXPECT_GT(sr.frac_separated, 0.1);
+  EXPECT_GT(sr.frac_stuck, 0.01);
+}
+
 // A start ten times below the energy estimate (case 1: no contact opens or sticks along its flow)
 // lies where the period map is linear, and the only fixed point of a linear map is the sliding
 // equilibrium Z_e: plain Newton goes there ("collapsed onto the sliding equilibrium"), and so does

@@ -33,6 +33,7 @@
 #include <slepceps.h>
 
 #include <complex>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,11 @@ struct ShootingResult {
   // -shoot_pre_periods: periods of flow run before Newton, and the period-corrected T they ended with.
   PetscInt                             pre_periods = 0;
   PetscReal                            pre_period  = 0;
+  // The period of the pre-periods' motion, from its returns to a Poincare section (0: no two
+  // successive returns agreed), and the centre T_c of the period bracket (T_c/2, 2 T_c) Newton ran
+  // in: the start period, or that measured period when it lay beyond the first-order correction.
+  PetscReal                            pre_measured_period = 0, bracket_centre = 0;
+  bool                                 bracket_recentred   = false;
   PetscReal                            period = 0, residual = 0; // ||H|| / ||Z0|| at the returned iterate
   std::vector<PetscReal>               residual_history, period_history;
   std::vector<PetscReal>               Z0;                 // (U, dU) on rank 0
@@ -227,6 +233,10 @@ private:
   // count as period integrations pro rata.
   PetscInt        flow_stop_ = -1, partial_steps_ = 0;
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
+  // Called after every step of Flow while set (the pre-periods' section returns): step index, state, reactions.
+  std::function<PetscErrorCode(PetscInt, Vec, Vec, const Eigen::VectorXd &)> on_step_;
+  PetscReal       pre_measured_ = 0;   // ... the period their motion returned with (0: none)
+  bool            recentred_    = false; // ... and whether the bracket was moved onto it
   PetscReal       pre_T_    = 0; // ... and the period they ended with
   void           *ksp_default_ctx_ = nullptr; // KSPConvergedDefault's, wrapped by KrylovConverged
   PetscReal       rnorm0_          = 0;
