@@ -129,6 +129,8 @@ PetscErrorCode Checkpoint(MPI_Comm comm, io::H5Writer &out, const char *done)
 {
   bool stop;
   PetscFunctionBeginUser;
+  // What a second signal leaves (core/interrupt.h) then says how far it got.
+  PetscCall(out.SetStatus((std::string("running (complete up to ") + done + ")").c_str()));
   PetscCall(out.Flush());
   PetscCall(InterruptRequested(comm, &stop));
   if (!stop) PetscFunctionReturn(0);

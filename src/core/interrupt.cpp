@@ -1,6 +1,8 @@
 #include "squeal/core/interrupt.h"
 
 #include <csignal>
+#include <cstdio>
+#include <cstring>
 #include <ctime>
 
 #include <fcntl.h>
@@ -13,6 +15,30 @@ namespace {
 
 volatile std::sig_atomic_t g_signal = 0;
 struct timespec            g_first{}; // when g_signal arrived
+// The salvage of a second signal: set only while g_ready is 0, read by the handler only when 1.
+char                       g_part[4096], g_target[4096];
+volatile std::sig_atomic_t g_ready = 0;
+
+// write(2) of a C string (async-signal-safe, unlike stdio).
+void SafeWrite(const char *s) { (void)!write(STDERR_FILENO, s, std::strlen(s)); }
+
+void Salvage(int sig)
+{
+  const char *name = sig == SIGINT ? "SIGINT" : "SIGTERM";
+  if (g_part[0] == 0) return;
+  SafeWrite("squeal: second ");
+  SafeWrite(name);
+  if (g_ready && std::rename(g_part, g_target) == 0) {
+    // The file says "running (... written after X)": the analyses up to X are complete in it.
+    SafeWrite(": stopped at once; the results written so far are in ");
+    SafeWrite(g_target);
+    SafeWrite("\n");
+  } else {
+    SafeWrite(": stopped at once, in the middle of a write to the results file; what it holds is left in ");
+    SafeWrite(g_part);
+    SafeWrite(" (it may not be readable)\n");
+  }
+}
 
 extern "C" void OnSignal(int sig)
 {
@@ -24,6 +50,7 @@ extern "C" void OnSignal(int sig)
     // clean stop short; a user's second signal, later than that, gives up on it.
     const double since = (double)(now.tv_sec - g_first.tv_sec) + 1e-9 * (double)(now.tv_nsec - g_first.tv_nsec);
     if (since < 0.5) return;
+    Salvage(sig);
     std::signal(sig, SIG_DFL);
     std::raise(sig);
     return;
@@ -80,6 +107,17 @@ PetscErrorCode InterruptPoint(MPI_Comm comm, const char *where)
   PetscCheck(!stop, comm, PETSC_ERR_SIG, "interrupted by %s during %s", InterruptSignalName(), where);
   PetscFunctionReturn(0);
 }
+
+void InterruptSalvage(const char *part, const char *target)
+{
+  g_ready = 0;
+  g_part[0] = g_target[0] = 0;
+  if (!part || !target || std::strlen(part) >= sizeof g_part || std::strlen(target) >= sizeof g_target) return;
+  std::memcpy(g_target, target, std::strlen(target) + 1);
+  std::memcpy(g_part, part, std::strlen(part) + 1);
+}
+
+void InterruptSalvageReady(bool ready) { g_ready = ready ? 1 : 0; }
 
 int InterruptSignal() { return (int)g_signal; }
 

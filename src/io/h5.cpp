@@ -71,6 +71,7 @@ PetscErrorCode H5Writer::CheckOpen()
 {
   PetscFunctionBeginUser;
   PetscCheck(open_, comm_ == MPI_COMM_NULL ? PETSC_COMM_SELF : comm_, PETSC_ERR_ORDER, "results file is not open");
+  InterruptSalvageReady(false); // a write follows: the file on disk is no longer known to be consistent
   PetscFunctionReturn(0);
 }
 
@@ -170,7 +171,7 @@ PetscErrorCode H5Writer::Open(MPI_Comm comm, const char *path)
       if (file_ < 0) {
         Fail("create the file");
         std::remove(tmp_.c_str());
-      }
+      } else InterruptSalvage(tmp_.c_str(), (IsCompleteResultsFile(path_.c_str()) ? FailedSibling(path_) : path_).c_str());
     }
   }
   {
@@ -193,6 +194,7 @@ PetscErrorCode H5Writer::Close()
   PetscFunctionBeginUser;
   if (!open_) PetscFunctionReturn(0);
   open_ = false;
+  InterruptSalvage(nullptr, nullptr);
   PetscMPIInt aside = 0;
   if (rank_ == 0) {
     if (H5Fclose(file_) < 0) Fail("close the file");
@@ -217,6 +219,7 @@ PetscErrorCode H5Writer::Flush()
   PetscFunctionBeginUser;
   PetscCall(CheckOpen());
   if (rank_ == 0 && err_.empty() && H5Fflush(file_, H5F_SCOPE_LOCAL) < 0) Fail("flush");
+  if (rank_ == 0 && err_.empty()) InterruptSalvageReady(true);
   PetscCall(Sync());
   PetscFunctionReturn(0);
 }

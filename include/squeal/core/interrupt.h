@@ -4,7 +4,9 @@
 // Newton iterations, sweep points) poll the flag between steps, stop after the step in hand, and
 // the application writes and closes the results file with what was computed, says so, and exits
 // non-zero. A second signal of the same kind, half a second or more after the first, kills the
-// process the default way (for a run stuck inside one step).
+// process the default way (for a run stuck inside one step); if the results file was consistent on
+// disk at that moment (flushed, nothing written since), it first moves it to its final name, so
+// that the results of the analyses already finished stay readable.
 #pragma once
 
 #include <petscsys.h>
@@ -23,6 +25,12 @@ PetscErrorCode InterruptRequested(MPI_Comm comm, bool *stop);
 // monitors), which cannot stop "after the step in hand": the error unwinds to the application,
 // whose results file keeps what earlier analyses wrote (status "interrupted ...").
 PetscErrorCode InterruptPoint(MPI_Comm comm, const char *where);
+
+// The results file a second signal salvages (rank 0's writer, io/h5.cpp): its temporary and the
+// name it gets (the target, or the ".failed.h5" sibling of a complete file). nullptr: none.
+// Ready: the temporary is consistent on disk now (just flushed, nothing written since).
+void InterruptSalvage(const char *part, const char *target);
+void InterruptSalvageReady(bool ready);
 
 // The signal received on this rank (0 if none), and its name ("SIGINT", "SIGTERM").
 int         InterruptSignal();

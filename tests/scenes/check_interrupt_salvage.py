@@ -1,0 +1,76 @@
+#!/usr/bin/env python3
+"""A second signal keeps the results file readable when it was just flushed (issue 20, item 1).
+
+    check_interrupt_salvage.py PROGRAM DIR
+
+Runs PROGRAM (tests/io/interrupt_salvage.cpp) in its two modes and checks: it dies by SIGTERM;
+after a flush the file is under its name, readable by h5py, with /stability's value and the status
+"running (complete up to the stability analysis)", and no temporary left; in the middle of a write
+the message names the temporary left instead. Then, with a complete results file already at the
+name, the salvaged file goes beside it (".failed.h5") and the complete one is untouched.
+"""
+import glob
+import os
+import signal
+import subprocess
+import sys
+
+import h5py
+
+
+def run(prog, path, mode):
+    p = subprocess.run([prog, path, mode], capture_output=True, text=True, timeout=60)
+    print(f"+ {prog} {path} {mode}: exit {p.returncode}\n{p.stderr}")
+    return p
+
+
+def main(prog, d):
+    os.makedirs(d, exist_ok=True)
+    path = os.path.join(d, "salvage.h5")
+    for f in glob.glob(os.path.join(d, "*salvage*")):
+        os.remove(f)
+    checks = []
+    p = run(prog, path, "flushed")
+    checks.append((p.returncode == -signal.SIGTERM, f"flushed: killed by SIGTERM (exit {p.returncode})"))
+    checks.append(("results written so far are in " + path in p.stderr, "flushed: the message names the file"))
+    ok = os.path.exists(path)
+    if ok:
+        with h5py.File(path, "r") as f:
+            status = f.attrs["status"]
+            status = status.decode() if isinstance(status, bytes) else str(status)
+            value = float(f["stability"].attrs["value"])
+        checks.append((status == "running (complete up to the stability analysis)", f"flushed: status '{status}'"))
+        checks.append((value == 42.0, f"flushed: /stability value {value}"))
+    checks.append((ok, f"flushed: {path} exists"))
+    checks.append((not glob.glob(os.path.join(d, ".salvage.h5.part-*")), "flushed: no temporary left"))
+
+    os.remove(path)
+    p = run(prog, path, "writing")
+    parts = glob.glob(os.path.join(d, ".salvage.h5.part-*"))
+    checks.append((p.returncode == -signal.SIGTERM, f"writing: killed by SIGTERM (exit {p.returncode})"))
+    checks.append((not os.path.exists(path), "writing: nothing under the name"))
+    checks.append((len(parts) == 1 and parts[0] in p.stderr, "writing: the message names the temporary left"))
+    for f in parts:
+        os.remove(f)
+
+    # A complete file at the name stays; the salvage goes beside it.
+    p = run(prog, path, "complete")
+    checks.append((p.returncode == 0, "beside: a complete file written"))
+    p = run(prog, path, "flushed")
+    failed = os.path.join(d, "salvage.failed.h5")
+    with h5py.File(path, "r") as f:
+        s = f.attrs["status"]
+        s = s.decode() if isinstance(s, bytes) else str(s)
+    checks.append((s == "complete", "beside: the complete file is untouched"))
+    checks.append((os.path.exists(failed) and failed in p.stderr, f"beside: salvaged to {failed}, and said"))
+
+    bad = 0
+    for good, what in checks:
+        print(("ok:   " if good else "FAIL: ") + what)
+        bad += not good
+    print("PASS" if not bad else f"{bad} check(s) FAILED")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1], sys.argv[2]))
