@@ -1,4 +1,5 @@
 #include "squeal/stability/sweep.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
@@ -114,11 +115,24 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
   std::vector<PetscInt>               failed(npts, 0), covered(npts, 0);
   std::vector<PetscReal>              complete(npts, 0.0);
   PetscInt                            kmax = 0, done = 0;
-  for (PetscInt p = rank; p < npts; p += size) {
+  // Rounds of one point per rank, so that every rank polls the interrupt as often (collective);
+  // the points a signal leaves unsolved are marked 2 (not computed), not "without steady sliding".
+  res.interrupted = false;
+  for (PetscInt p0 = 0; p0 < npts; p0 += size) {
+    bool stop;
+    PetscCall(InterruptRequested(comm_, &stop));
+    if (stop) {
+      res.interrupted = true;
+      for (PetscInt p = p0 + rank; p < npts; p += size) failed[p] = 2;
+      break;
+    }
+    const PetscInt p = p0 + rank;
+    if (p >= npts) continue;
     StabilityResult sr;
     bool            ok;
     PetscCall(ps.Solve(res.mu[p % mu_n_], res.V[p / mu_n_], sr, &ok));
-    if (!ok) failed[p] = 1;
+    // The point's eigensolve, on this rank alone, fails at its first monitor call after a signal.
+    if (!ok) failed[p] = InterruptSignal() ? 2 : 1;
     else {
       for (const Mode &m : sr.modes) local[p].insert(local[p].end(), {m.sigma, m.omega});
       covered[p]  = sr.BandCovered();
@@ -182,8 +196,12 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
 
   // Critical mu per V: bracket on the grid, then bisection on the owning rank.
   std::vector<PetscReal> crit(v_n_, 0.0), freq(v_n_, 0.0);
+  PetscMPIInt any_stop = res.interrupted ? 1 : 0;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &any_stop, 1, MPI_INT, MPI_MAX, comm_));
+  res.interrupted = any_stop != 0;
   for (PetscInt iv = rank; iv < v_n_; iv += size) {
     crit[iv] = freq[iv] = kNaN;
+    if (res.interrupted) continue; // the grid has holes: no crossing is located (nor certified)
     for (PetscInt i = 0; i + 1 < mu_n_; ++i) {
       const PetscReal s0 = res.MaxSigma(iv, i), s1 = res.MaxSigma(iv, i + 1);
       if (!(s0 <= 0 && s1 > 0)) continue;
@@ -225,6 +243,7 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
   res.critical_certified.assign(v_n_, 1);
   for (PetscInt iv = 0; iv < v_n_; ++iv)
     for (PetscInt i = 0; i < mu_n_; ++i) {
+      if (res.interrupted) res.critical_certified[iv] = 0;
       if (!std::isnan(crit[iv]) && res.mu[i] > crit[iv]) break;
       if (!res.failed[iv * mu_n_ + i] && !res.covered[iv * mu_n_ + i]) res.critical_certified[iv] = 0;
     }
@@ -237,13 +256,18 @@ PetscErrorCode SweepSolver::View(const SweepResult &res, PetscViewer viewer) con
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
   if (!ascii) PetscFunctionReturn(0);
-  PetscInt nfail = 0;
-  for (PetscInt f : res.failed) nfail += f;
+  PetscInt nfail = 0, nskip = 0;
+  for (PetscInt f : res.failed) nfail += f == 1, nskip += f == 2;
   PetscCall(PetscViewerASCIIPrintf(viewer,
                                    "stability map: %zu mu value(s) in [%g, %g] x %zu V value(s) in [%g, %g] m/s, %" PetscInt_FMT
                                    " point(s) without steady sliding\n",
                                    res.mu.size(), (double)res.mu.front(), (double)res.mu.back(), res.V.size(),
                                    (double)res.V.front(), (double)res.V.back(), nfail));
+  if (res.interrupted)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "INTERRUPTED by %s: %" PetscInt_FMT " of %zu point(s) computed (/sweep/failed = 2: not computed); no "
+                                     "critical mu located\n",
+                                     InterruptSignalName(), (PetscInt)res.failed.size() - nskip, res.failed.size()));
   PetscInt nuncov = 0;
   PetscReal worst = kInf;
   for (size_t p = 0; p < res.covered.size(); ++p)
@@ -279,6 +303,8 @@ PetscErrorCode SweepSolver::Write(const SweepResult &res, io::H5Writer &out) con
   PetscCall(out.WriteArray("/sweep/complete_up_to", {(hsize_t)res.V.size(), (hsize_t)res.mu.size()}, res.complete_up_to.data()));
   PetscCall(out.WriteIntArray("/sweep/critical_certified", {(hsize_t)res.V.size()}, res.critical_certified.data()));
   PetscCall(out.WriteAttribute("/sweep/complete_up_to", "units", "Hz; every eigenvalue with |lambda| < 2 pi x computed (inf: all; 0: failed point)"));
+  PetscCall(out.WriteAttribute("/sweep/failed", "meaning", "0 solved, 1 no steady sliding or no eigenvalues, 2 not computed (interrupted)"));
+  PetscCall(out.WriteAttribute("/sweep", "interrupted", (PetscInt)res.interrupted));
   PetscCall(out.WriteAttribute("/sweep", "fmax", res.fmax));
   PetscCall(out.WriteAttribute("/sweep/V", "units", "m/s"));
   PetscCall(out.WriteAttribute("/sweep/eigenvalues", "units", "1/s"));

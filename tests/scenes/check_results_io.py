@@ -6,6 +6,10 @@
       in 1..127, stderr names the signal, F holds the stability table (unstable period T within
       0.5 %), a partial /transient (complete = 0, >= 2 records, time increasing at a constant
       step), root status "interrupted ...", no temporary file left.
+  check_results_io.py sweep_interrupt --output F --after REGEX [--signal INT|TERM] -- cmd...
+      The same signal during a sweep (issue 20, item 1): F holds /sweep with the points computed
+      (/sweep/failed 0, eigenvalues finite) and the rest marked 2 (not computed), /sweep
+      interrupted = 1, no critical mu, status "interrupted ...", stdout says INTERRUPTED.
   check_results_io.py concurrent --output F -- cmdA -- cmdB
       Starts both at once (same -output, different mu; A also runs a transient). Both exit 0;
       F comes whole from one run: /model mu = /equilibrium mu, r_t = mu r_n at every closed point
@@ -94,6 +98,27 @@ def interrupt(args, cmd):
             ok(np.all(np.isfinite(U)), "U finite")
 
 
+def sweep_interrupt(args, cmd):
+    out = args["--output"]
+    name = signal_after(cmd, out, args["--after"], args.get("--signal", "INT"))
+    no_temporaries(out)
+    if not ok(os.path.exists(out), f"{out} exists"):
+        return
+    with Results(out) as r:
+        ok(r.status.startswith("interrupted (" + name), f"root status '{r.status}'")
+        if not ok("sweep/failed" in r, "has /sweep/failed"):
+            return
+        failed = np.asarray(r.h5["sweep/failed"][()])
+        ev = np.asarray(r.h5["sweep/eigenvalues"][()])
+        done, skipped = int(np.sum(failed == 0)), int(np.sum(failed == 2))
+        ok(done >= 20 and skipped > 0 and done + skipped == failed.size,
+           f"{done} point(s) computed, {skipped} not computed (2), of {failed.size}; none 'without sliding'")
+        ok(np.all(np.isfinite(ev[failed == 0][..., 0][:, 0])), "every computed point has its eigenvalues")
+        ok(np.all(np.isnan(ev[failed == 2])), "no eigenvalue at a point not computed")
+        ok(int(r.h5["sweep"].attrs["interrupted"]) == 1, "/sweep interrupted = 1")
+        ok(np.all(np.isnan(np.asarray(r.h5["sweep"].attrs["critical_mu"]))), "no critical mu from a grid with holes")
+
+
 def concurrent(args, cmds):
     out = args["--output"]
     if os.path.exists(out):
@@ -146,6 +171,8 @@ def main():
     args = dict(zip(opts[::2], opts[1::2]))
     if mode == "interrupt":
         interrupt(args, rest)
+    elif mode == "sweep_interrupt":
+        sweep_interrupt(args, rest)
     elif mode == "concurrent":
         k = rest.index("--")
         concurrent(args, [rest[:k], rest[k + 1:]])

@@ -24,7 +24,8 @@ struct SweepResult {
   std::vector<PetscReal> mu, V;
   PetscInt               k = 0;       // eigenvalue slots per point (omega >= 0 members)
   std::vector<PetscReal> eigenvalues; // [iv][imu][slot][re, im], NaN where absent
-  std::vector<PetscInt>  failed;      // per point: 0 solved, 1 no equilibrium or no eigenvalues
+  std::vector<PetscInt>  failed;      // per point: 0 solved, 1 no equilibrium or no eigenvalues, 2 not computed (interrupted)
+  bool                   interrupted = false; // a signal stopped the sweep: points marked 2, no critical mu
   // Per point: the stability solver's completeness (Hz, inf: all eigenvalues) and whether it
   // reached the band -stab_fmax; a point not covered may have missed an unstable mode.
   std::vector<PetscReal> complete_up_to;
