@@ -232,8 +232,9 @@ TEST(Transient, NoFrictionDecaysToEquilibrium)
 // records alone with dense M, C, K, F and H: E = (V^T M V + U^T K U) / 2, and step by step
 // W_damping += dq^T C dq / h, W_reactions += (H^T dq) . R, W_load += F . dq with dq = U_{k+1} - U_k;
 // and every recorded status against LocalContactSolver::Status of the recorded reactions. Each
-// bookkeeping path: the fixed-size dense one (3-DOF, one rank), the run-time-sized one
-// (-theta_fixed_size false), the PETSc one (sparse back end; and on several ranks every one).
+// bookkeeping path: the fixed-size dense one (3-DOF, one rank), the PETSc one with the dense
+// run-time-sized step (-theta_fixed_size false) and with the sparse back end (on several ranks:
+// the PETSc one throughout).
 TEST(Transient, EnergyColumnsAndStatusesMatchDenseSumsOfTheRecords)
 {
   for (PetscReal V : {3.0, 0.75})
