@@ -7,8 +7,9 @@
 //     dense (1) and the sparse KSP (0) back end.
 // Counters: fp_passes = mean fixed-point passes per step. After the runs, one line per case prints
 // library / hand-written time per step (fastest repetition of each).
-// Instruction counts: `squeal_bench --instr CASE VARIANT STEPS` (VARIANT library or minimal) runs
-// STEPS steps inside CountedSteps only, for callgrind's --toggle-collect (benchmarks/step_instructions.sh).
+// Instruction counts: `squeal_bench --instr CASE VARIANT STEPS [WARM]` (VARIANT library or minimal)
+// runs STEPS steps inside CountedSteps only, after WARM others (default 50000), for callgrind's
+// --toggle-collect (benchmarks/step_instructions.sh, benchmarks/transient_instructions.sh).
 #include "squeal/integration/theta.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/stability.h"
@@ -75,10 +76,12 @@ ThreeDofParams CaseParams(int which)
   return prm;
 }
 
-void PrepareThreeDof(Prepared &p, int which)
+// warm: steps before the timed ones (50 periods: on the cycle); the run starts as `-analyses
+// transient` does (h = T / 1000, amplitude 1e-5), so steps warm + 1 ... are that run's.
+void PrepareThreeDof(Prepared &p, int which, PetscInt warm = 50000)
 {
   PetscCallAbort(PETSC_COMM_WORLD, BuildThreeDof(PETSC_COMM_WORLD, CaseParams(which), p.model));
-  Prepare(p, 50000, 2000);
+  Prepare(p, warm, 2000);
 }
 
 // The same step with fixed-size types: no PETSc, no dynamic sizes, H = I, g0 = 0; same h, theta,
@@ -199,10 +202,10 @@ __attribute__((noinline)) void CountedStepsLibrary(Prepared &p, long steps, doub
 
 __attribute__((noinline)) void CountedStepsMinimal(Minimal &m, long steps) { m.Run(Steps{steps}); }
 
-int CountSteps(int which, const char *variant, long steps)
+int CountSteps(int which, const char *variant, long steps, long warm)
 {
   Prepared p;
-  PrepareThreeDof(p, which);
+  PrepareThreeDof(p, which, warm);
   double passes = 0;
   if (!std::strcmp(variant, "library")) CountedStepsLibrary(p, steps, &passes);
   else {
@@ -332,11 +335,12 @@ BENCHMARK(ChainScale)->Name("ChainScale")->ArgNames({"N", "nc", "W"})->ArgsProdu
 
 int main(int argc, char **argv)
 {
-  // --instr CASE VARIANT STEPS: no Google Benchmark run, only the counted steps (for callgrind).
-  if (argc == 5 && !std::strcmp(argv[1], "--instr")) {
+  // --instr CASE VARIANT STEPS [WARM]: no Google Benchmark run, only the counted steps after WARM
+  // (default 50000) uncounted ones (for callgrind).
+  if ((argc == 5 || argc == 6) && !std::strcmp(argv[1], "--instr")) {
     int one = 1;
     PetscCall(SlepcInitialize(&one, &argv, nullptr, nullptr));
-    const int rc = CountSteps(std::atoi(argv[2]), argv[3], std::atol(argv[4]));
+    const int rc = CountSteps(std::atoi(argv[2]), argv[3], std::atol(argv[4]), argc == 6 ? std::atol(argv[5]) : 50000);
     PetscCall(SlepcFinalize());
     return rc;
   }

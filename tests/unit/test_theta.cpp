@@ -228,6 +228,81 @@ TEST(Transient, NoFrictionDecaysToEquilibrium)
   EXPECT_EQ(r.summary.frac_separated, 0.0);
 }
 
+// The energy bookkeeping of a run, recorded at every step, against sums written out here on the
+// records alone with dense M, C, K, F and H: E = (V^T M V + U^T K U) / 2, and step by step
+// W_damping += dq^T C dq / h, W_reactions += (H^T dq) . R, W_load += F . dq with dq = U_{k+1} - U_k;
+// and every recorded status against LocalContactSolver::Status of the recorded reactions. Each
+// bookkeeping path: the fixed-size dense one (3-DOF, one rank), the PETSc one with the dense
+// run-time-sized step (-theta_fixed_size false) and with the sparse back end (on several ranks:
+// the PETSc one throughout).
+TEST(Transient, EnergyColumnsAndStatusesMatchDenseSumsOfTheRecords)
+{
+  for (PetscReal V : {3.0, 0.75})
+    for (int path = 0; path < 3; ++path) {
+      ThreeDofParams p;
+      p.V = V;
+      Model model;
+      ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, p, model), 0);
+      EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+      StabilitySolver    stab(PETSC_COMM_WORLD);
+      SlidingEquilibrium eq;
+      StabilityResult    sr;
+      ASSERT_EQ(eqs.Solve(model, eq), 0);
+      ASSERT_EQ(stab.Solve(model, eq, sr), 0);
+      ThetaIntegrator   ti(PETSC_COMM_WORLD);
+      TransientAnalysis ta(PETSC_COMM_WORLD);
+      ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ledger_fixed_size", "false"), 0);
+      if (path == 1) {
+        ASSERT_EQ(ti.SetOptionsPrefix("ledger_"), 0);
+      }
+      ASSERT_EQ(ti.SetFromOptions(), 0);
+      ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ledger_fixed_size"), 0);
+      if (path == 2) {
+        ASSERT_EQ(ti.SetDenseMax(0), 0);
+      }
+      ta.periods    = 25; // growth, then impacts, separation and (V = 0.75) stick
+      ta.keep_every = 1;
+      TransientResult r;
+      ASSERT_EQ(ta.Run(model, eq, sr, ti, r), 0);
+      EXPECT_EQ(ti.Dense(), path < 2);
+      EXPECT_EQ(ti.FixedSizeKernel(), path == 0);
+      const Eigen::MatrixXd M = test::ToDense(model.M), C = test::ToDense(model.C), K = test::ToDense(model.K);
+      const Eigen::VectorXd F = test::ToDense(model.F);
+      Eigen::MatrixXd       Ht(3, 3);
+      for (int d = 0; d < 3; ++d) Ht.row(d) = test::DenseColumns(model.contacts, 3, d).col(0).transpose();
+      PetscMPIInt rank;
+      MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+      if (rank) continue; // the records live on rank 0
+      const size_t n = r.t.size();
+      ASSERT_EQ(n, (size_t)r.steps + 1);
+      auto Uk = [&](size_t k) { return Eigen::Map<const Eigen::Vector3d>(&r.U[3 * k]); };
+      auto Vk = [&](size_t k) { return Eigen::Map<const Eigen::Vector3d>(&r.V[3 * k]); };
+      auto Rk = [&](size_t k) { return Eigen::Map<const Eigen::Vector3d>(&r.R[3 * k]); };
+      double Wc = 0, WR = 0, WF = 0, Emax = 0, err[4] = {0, 0, 0, 0};
+      int    seen[3] = {0, 0, 0};
+      std::vector<int> st;
+      for (size_t k = 0; k < n; ++k) {
+        if (k > 0) {
+          const Eigen::Vector3d dq = Uk(k) - Uk(k - 1);
+          Wc += dq.dot(C * dq) / r.h;
+          WR += (Ht * dq).dot(Rk(k));
+          WF += F.dot(dq);
+          ti.Contact().Status(Eigen::VectorXd(Rk(k)), st);
+          ASSERT_EQ(r.status[k], st[0]) << "record " << k;
+          seen[st[0]]++;
+        }
+        const double E = 0.5 * Vk(k).dot(M * Vk(k)) + 0.5 * Uk(k).dot(K * Uk(k));
+        Emax           = std::max(Emax, std::abs(E));
+        const double *e = &r.energy[4 * k], ref[4] = {E, Wc, WR, WF};
+        for (int j = 0; j < 4; ++j) err[j] = std::max(err[j], std::abs(e[j] - ref[j]));
+      }
+      for (int j = 0; j < 4; ++j) EXPECT_LT(err[j], 1e-12 * Emax) << "V = " << V << ", path " << path << ", column " << j;
+      EXPECT_GT(seen[kOpen] + seen[kSlip], 1000);
+      if (V < 1) EXPECT_GT(seen[kStick], 100);
+      else EXPECT_GT(seen[kOpen], 1000);
+    }
+}
+
 // The dense step's kernel compiled for the 3-DOF sizes (with its inline Vec array access) against
 // the run-time-sized kernel (-theta_fixed_size false) and the sparse back end (PETSc KSP, another
 // code path): same states to round-off and the same fixed-point passes through impacts, stick,

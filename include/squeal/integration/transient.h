@@ -16,7 +16,9 @@
 #include "squeal/io/h5.h"
 #include "squeal/stability/stability.h"
 
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace squeal {
@@ -61,11 +63,35 @@ struct TransientSummary {
   PetscReal              energy_defect = 0; // max |balance| / max E over the run
 };
 
+// std::allocator, except that growing a vector leaves the new elements uninitialised: Run sizes the
+// records for the whole run before it starts and writes each value once, where a zero fill would
+// write every record twice (a third of the bookkeeping of a 3-DOF step recorded at every step).
+template <class T>
+struct RecordAllocator : std::allocator<T> {
+  using std::allocator<T>::allocator;
+  template <class U>
+  struct rebind {
+    using other = RecordAllocator<U>;
+  };
+  template <class U>
+  void construct(U *p) noexcept
+  {
+    ::new (static_cast<void *>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U *p, Args &&...args)
+  {
+    ::new (static_cast<void *>(p)) U(std::forward<Args>(args)...);
+  }
+};
+template <class T>
+using RecordVector = std::vector<T, RecordAllocator<T>>;
+
 struct TransientResult {
-  PetscReal              h = 0, theta = 0, T_ref = 0;
-  PetscInt               steps = 0, N = 0, nc = 0, keep_every = 1;
-  std::vector<PetscReal> t, U, V, R, energy; // energy: [E, W_damping, W_reactions, W_load] per record
-  std::vector<PetscInt>  status;
+  PetscReal               h = 0, theta = 0, T_ref = 0;
+  PetscInt                steps = 0, N = 0, nc = 0, keep_every = 1;
+  RecordVector<PetscReal> t, U, V, R, energy; // energy: [E, W_damping, W_reactions, W_load] per record
+  RecordVector<PetscInt>  status;
   bool                   complete = false;
   TransientSummary       summary;
 };
