@@ -699,6 +699,8 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(MatAssemblyEnd(W, MAT_FINAL_ASSEMBLY));
   eps.reset();
   PetscCall(PetscLogStagePop());
+  // One solve with nB right-hand sides cannot be polled inside: a signal is obeyed here, before the projection.
+  PetscCall(InterruptPoint(comm, "the Craig-Bampton reduction (after its constraint modes)"));
   PetscCall(PetscTime(&t3));
   cpu[3] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
   PetscCall(PetscLogStagePush(stages.project));
