@@ -63,7 +63,11 @@ public:
   // block by Cholesky, to relative residual cg_rtol), "redundant" (every rank factorises the whole A)
   // or "auto" (redundant); one rank always factorises A.
   PetscErrorCode SetParallelSolver(const char *name, PetscReal cg_rtol);
-  // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*.
+  // Local contact solver (S6-7): "fp" (fixed point), "ssn" (semi-smooth Newton, fixed point as
+  // fallback, LocalContactSolver), "auto" (ssn from n_c >= kSsnAutoContacts on); Newton's iteration limit.
+  PetscErrorCode SetContactSolver(const char *name, PetscInt ssn_max_it);
+  // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*,
+  // -theta_contact_solver, -theta_ssn_max_it.
   PetscErrorCode SetFromOptions();
   // (S1)-(S3) for step size h; call again whenever h changes.
   PetscErrorCode SetUp(const Model &model, PetscReal h);
@@ -127,6 +131,7 @@ private:
   std::string  prefix_   = "theta_";
   PetscReal    theta_    = 0.5, h_ = 0, fp_tol_ = 1e-12, rho_scale_ = 1.0, r_ref_ = 1.0;
   PetscInt     fp_max_it_ = 500, dense_max_ = 200;
+  PetscInt     contact_solver_ = 0, ssn_max_it_ = 30; // -theta_contact_solver: 0 fp, 1 ssn, 2 auto
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
