@@ -16,7 +16,7 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   sparse_ = false;
   v_.setZero(3 * nc);
   solver_ = ContactSolver::kFixedPoint; // SetSolver sizes Newton's arrays for this W
-  newton_solves_ = fallbacks_ = newton_steps_ = 0;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -39,7 +39,7 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
   sparse_ = true;
   v_.setZero(3 * nc);
   solver_ = ContactSolver::kFixedPoint;
-  newton_solves_ = fallbacks_ = newton_steps_ = 0;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -66,6 +66,7 @@ void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it)
   const Eigen::Index m = v_.size();
   solver_              = s;
   newton_max_it_       = newton_max_it;
+  factor_valid_        = false;
   if (s != ContactSolver::kNewton) {
     J_.resize(0, 0), Js_.resize(0, 0), lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>();
     return;
@@ -196,17 +197,24 @@ void LocalContactSolver::AssembleJacobian()
       for (int b = 0; b < 3; ++b) Js_.coeffRef(3 * c + a, 3 * c + b) += (a == b ? 1.0 : 0.0) - g_(a, 3 * c + b);
 }
 
-bool LocalContactSolver::NewtonStep()
+bool LocalContactSolver::Factor()
 {
   AssembleJacobian();
-  if (!sparse_) {
-    lu_.compute(J_);
-    d_.noalias() = lu_.solve(F_);
-  } else {
+  ++factorisations_;
+  factor_valid_ = false;
+  if (!sparse_) lu_.compute(J_);
+  else {
     slu_.factorize(Js_);
     if (slu_.info() != Eigen::Success) return false;
-    d_ = slu_.solve(F_);
   }
+  factor_valid_ = true;
+  return true;
+}
+
+bool LocalContactSolver::Direction()
+{
+  if (!sparse_) d_.noalias() = lu_.solve(F_);
+  else d_ = slu_.solve(F_);
   d_ = -d_;
   return d_.allFinite();
 }
@@ -232,17 +240,31 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
       ok = true;
       break;
     }
-    if (k == newton_max_it_ || !NewtonStep()) break;
-    if (sparse_) hWd_.noalias() = hWs_ * d_;
-    else hWd_.noalias() = hW_ * d_;
-    // Backtracking on ||F||_2 (Armijo with a small slope, as F is only semi-smooth).
-    bool      accepted = false;
-    PetscReal alpha    = 1, phit = NAN;
-    for (int ls = 0; ls < 30 && !accepted; ++ls, alpha *= 0.5) {
-      rt_  = r + alpha * d_;
-      vt_  = v_ + alpha * hWd_;
-      phit = Residual(gap0, rt_, vt_, Ft_, false);
-      accepted = phit <= (1 - 1e-4 * alpha) * phi;
+    if (k == newton_max_it_) break;
+    // A kept factorisation first (chord step, accepted if it halves ||F||); else a fresh one at r
+    // with backtracking on ||F||_2 (Armijo with a small slope, as F is only semi-smooth).
+    bool accepted = false;
+    for (int attempt = 0; attempt < 2 && !accepted; ++attempt) {
+      const bool fresh = !factor_valid_;
+      if (fresh && !Factor()) break;
+      if (!Direction()) {
+        factor_valid_ = false;
+        if (fresh) break;
+        continue;
+      }
+      if (sparse_) hWd_.noalias() = hWs_ * d_;
+      else hWd_.noalias() = hW_ * d_;
+      PetscReal alpha = 1;
+      for (int ls = 0; ls < (fresh ? 30 : 1) && !accepted; ++ls, alpha *= 0.5) {
+        rt_                  = r + alpha * d_;
+        vt_                  = v_ + alpha * hWd_;
+        const PetscReal phit = Residual(gap0, rt_, vt_, Ft_, false);
+        accepted             = fresh ? phit <= (1 - 1e-4 * alpha) * phi : phit <= 0.5 * phi;
+      }
+      if (!accepted) {
+        factor_valid_ = false;
+        if (fresh) break;
+      }
     }
     if (!accepted) break;
     r  = rt_;

@@ -825,10 +825,11 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
   if (nc_ > 0 && local_.Solver() == ContactSolver::kNewton)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  contact solver: semi-smooth Newton (-%scontact_solver %s, at most %" PetscInt_FMT
-                                     " iterations), %" PetscInt_FMT " solves, %.2f Newton iterations per solve, %" PetscInt_FMT
+                                     " iterations), %" PetscInt_FMT " solves, %.2f Newton iterations and %.3f factorisations per solve, %" PetscInt_FMT
                                      " fell back to the fixed point\n",
                                      prefix_.c_str(), contact_solver_ == 1 ? "ssn" : "auto", ssn_max_it_, local_.NewtonSolves(),
-                                     local_.NewtonSolves() ? (double)local_.NewtonSteps() / local_.NewtonSolves() : 0.0, local_.Fallbacks()));
+                                     local_.NewtonSolves() ? (double)local_.NewtonSteps() / local_.NewtonSolves() : 0.0,
+                                     local_.NewtonSolves() ? (double)local_.Factorisations() / local_.NewtonSolves() : 0.0, local_.Fallbacks()));
   else if (nc_ > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, "  contact solver: fixed point (-%scontact_solver %s)\n", prefix_.c_str(),
                                      contact_solver_ == 0 ? "fp" : "auto"));

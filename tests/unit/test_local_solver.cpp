@@ -220,6 +220,8 @@ TEST(LocalSolver, NewtonFollowsTransitionsLikeFixedPoint)
     }
     EXPECT_GE(changes, 11 * nc); // every point changes state at every problem but the first
     EXPECT_EQ(nw.NewtonSolves(), 12);
+    EXPECT_GE(nw.Factorisations(), 1);
+    EXPECT_LE(nw.Factorisations(), nw.NewtonSteps());
     EXPECT_EQ(nw.Fallbacks(), 0) << FrictionLawName(law);
   }
 }
@@ -350,11 +352,12 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     EXPECT_EQ(run[1].ti.Contact().NewtonSolves(), steps);
     EXPECT_EQ(run[1].ti.Contact().Fallbacks(), 0);
     PetscPrintf(PETSC_COMM_WORLD,
-                "%s%s: open/stick/slip %d/%d/%d, iterations per step fp %.2f ssn %.2f (Newton %.2f, fallbacks %d), largest |dU| "
-                "difference %.2e of %.2e\n",
+                "%s%s: open/stick/slip %d/%d/%d, iterations per step fp %.2f ssn %.2f (Newton %.2f, %d factorisations, fallbacks %d), "
+                "largest |dU| difference %.2e of %.2e\n",
                 cse.chain ? "chain 6" : "3-DOF", cse.chain ? (cse.dense_max ? " dense" : cse.delassus_max ? " sparse, dense W" : " sparse W") : (cse.V > 1 ? " case 1" : " case 2"),
                 seen[0], seen[1], seen[2], (double)its[0] / steps, (double)its[1] / steps,
-                (double)run[1].ti.Contact().NewtonSteps() / steps, (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale);
+                (double)run[1].ti.Contact().NewtonSteps() / steps, (int)run[1].ti.Contact().Factorisations(),
+                (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale);
   }
 }
 

@@ -8,7 +8,7 @@
 // Every step:
 //   (S4) A v_f = B dU^i - h K U^i + h F
 //   (S5) w_f = H^T v_f,  g~^i_n = H_n^T (U^i + h(1-theta) dU^i) + g0
-//   (S6-7) local fixed point on r (LocalContactSolver)
+//   (S6-7) local fixed point on r, or semi-smooth Newton (-theta_contact_solver; LocalContactSolver)
 //   (S8) dU^{i+1} = v_f + h Y r,   (S9) U^{i+1} = U^i + h (theta dU^{i+1} + (1-theta) dU^i)
 // Sparse back end with many contacts (3 n_c > -theta_delassus_max; default -1: whenever the product
 // with Y would cost more than one more solve, N 3 n_c > 2 nnz(factor of A)): no N x 3 n_c matrix is stored. (S2) keeps W = H^T A^-1 H sparse: each column from one solve, entries with
