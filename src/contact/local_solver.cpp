@@ -245,7 +245,9 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
     // with backtracking on ||F||_2 (Armijo with a small slope, as F is only semi-smooth).
     bool accepted = false;
     for (int attempt = 0; attempt < 2 && !accepted; ++attempt) {
-      const bool fresh = !factor_valid_;
+      // In the second half of the iteration budget, plain Newton (a fresh J at every iteration):
+      // chord steps that only halve ||F|| would otherwise run into the limit and the fallback.
+      const bool fresh = !factor_valid_ || 2 * k >= newton_max_it_;
       if (fresh && !Factor()) break;
       if (!Direction()) {
         factor_valid_ = false;
