@@ -1,6 +1,8 @@
 #include "squeal/contact/local_solver.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace squeal {
 
@@ -13,6 +15,8 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   hWs_.resize(0, 0);
   sparse_ = false;
   v_.setZero(3 * nc);
+  solver_ = ContactSolver::kFixedPoint; // SetSolver sizes Newton's arrays for this W
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -34,6 +38,8 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
   hW_.resize(0, 0);
   sparse_ = true;
   v_.setZero(3 * nc);
+  solver_ = ContactSolver::kFixedPoint;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -47,11 +53,239 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
 LocalSolveInfo LocalContactSolver::Solve(const Eigen::VectorXd &w_f, const Eigen::VectorXd &gap0, Eigen::VectorXd &r)
 {
   if (sparse_) {
+    if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r);
     p_.mu          = cs_->mu;
     p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
     return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
   }
   return SolveSized<Eigen::Dynamic>(w_f, gap0, r);
+}
+
+void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it)
+{
+  const Eigen::Index m = v_.size();
+  solver_              = s;
+  newton_max_it_       = newton_max_it;
+  factor_valid_        = false;
+  if (s != ContactSolver::kNewton) {
+    J_.resize(0, 0), Js_.resize(0, 0), lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>();
+    return;
+  }
+  for (Eigen::VectorXd *x : {&r0_, &F_, &Ft_, &d_, &rt_, &vt_, &hWd_}) x->setZero(m);
+  g_.setZero(3, m), gd_.setZero(3, m);
+  if (!sparse_) {
+    J_.setZero(m, m);
+    lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m); // compute() on m x m then reuses its storage
+    return;
+  }
+  // Row block c of J is G_c D_c times rows 3c..3c+2 of h W, plus the diagonal block: the pattern is
+  // every row of a block in which W has an entry, and the diagonal blocks. Fixed for this W, so the
+  // ordering (analyzePattern) is done once.
+  std::vector<Eigen::Triplet<PetscReal>> t;
+  t.reserve(3 * hWs_.nonZeros() + 3 * m);
+  for (Eigen::Index j = 0; j < m; ++j) {
+    for (Eigen::SparseMatrix<PetscReal>::InnerIterator it(hWs_, j); it; ++it)
+      for (int a = 0; a < 3; ++a) t.emplace_back(3 * (it.index() / 3) + a, j, 0.0);
+    for (int a = 0; a < 3; ++a) t.emplace_back(3 * (j / 3) + a, j, 0.0);
+  }
+  Js_.resize(m, m);
+  Js_.setFromTriplets(t.begin(), t.end());
+  Js_.makeCompressed();
+  slu_.analyzePattern(Js_);
+}
+
+LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
+{
+  p_.mu          = cs_->mu;
+  p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
+  if (sparse_) return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
+  // The storage types of SolveSized<Eigen::Dynamic>, so that a fallback repeats the fixed point's
+  // operations exactly (Eigen may order a product differently on a Map than on a Matrix).
+  const Eigen::Index                    nc = rho_n_.size();
+  using MapC                            = Eigen::Map<const Eigen::VectorXd>;
+  const Eigen::Map<const Eigen::MatrixXd> hW(hW_.data(), 3 * nc, 3 * nc);
+  const MapC                            rho_n(rho_n_.data(), nc), rho_t(rho_t_.data(), nc), speed(speed_.data(), nc);
+  Eigen::Map<Eigen::VectorXd>           v(v_.data(), 3 * nc);
+  return ContactPasses(p_, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+}
+
+// One Jacobi pass of the fixed point's projections, r -> P(r), written as the passes write it (the
+// same expressions, so that F = 0 is exactly their fixed point), and its generalised Jacobian.
+PetscReal LocalContactSolver::Residual(CRef gap0, CRef r, CRef v, Eigen::VectorXd &F, bool jac)
+{
+  const Eigen::Index nc   = rho_n_.size();
+  const PetscReal    mu   = cs_->mu, h = p_.h;
+  const bool         rect = cs_->law == FrictionLaw::Rectilinear;
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    const Eigen::Index o  = 3 * c;
+    const PetscReal    gn = gap0[c] + h * v[o + kN];
+    const PetscReal    xn = r[o + kN] - rho_n_[c] * gn;
+    const PetscReal    xt = r[o + kT] - rho_t_[c] * (v[o + kT] - speed_[c]);
+    const PetscReal    xb = r[o + kB] - rho_t_[c] * v[o + kB];
+    const PetscReal    rn = std::max(0.0, xn), a = mu * rn;
+    PetscReal          rt = xt, rb = xb;
+    if (rect) {
+      rt = std::min(a, std::max(-a, rt));
+      rb = 0;
+    } else {
+      const PetscReal m = std::hypot(rt, rb);
+      if (m > a) {
+        const PetscReal f = m > 0 ? a / m : 0.0;
+        rt *= f;
+        rb *= f;
+      }
+    }
+    F[o + kT] = r[o + kT] - rt;
+    F[o + kB] = r[o + kB] - rb;
+    F[o + kN] = r[o + kN] - rn;
+    if (!jac) continue;
+    // G_c = dP_c/dx_c (rows: output t, b, n; columns: x_t, x_b, x_n). On a kink (x_n = 0, |x_T| = a)
+    // either side's derivative is a valid element of the generalised Jacobian: open and slip are taken.
+    auto G = g_.middleCols<3>(o);
+    G.setZero();
+    if (xn > 0) {
+      G(kN, kN) = 1;
+      if (rect) {
+        if (std::abs(xt) < a) G(kT, kT) = 1;
+        else G(kT, kN) = xt > 0 ? mu : (xt < 0 ? -mu : 0.0);
+      } else {
+        const PetscReal m = std::hypot(xt, xb);
+        if (m < a) G(kT, kT) = G(kB, kB) = 1;
+        else if (m > 0) { // a x_T / |x_T|: (a / m)(I - u u^T) in x_T, mu u in x_n
+          const PetscReal ut = xt / m, ub = xb / m, f = a / m;
+          G(kT, kT) = f * (1 - ut * ut);
+          G(kT, kB) = G(kB, kT) = -f * ut * ub;
+          G(kB, kB) = f * (1 - ub * ub);
+          G(kT, kN) = mu * ut;
+          G(kB, kN) = mu * ub;
+        }
+      }
+    }
+    // dx/dr = I - D h W, D = diag(rho_t, rho_t, h rho_n)
+    auto GD = gd_.middleCols<3>(o);
+    GD.col(kT) = G.col(kT) * rho_t_[c];
+    GD.col(kB) = G.col(kB) * rho_t_[c];
+    GD.col(kN) = G.col(kN) * (h * rho_n_[c]);
+  }
+  const PetscReal n = F.norm();
+  return std::isfinite(n) ? n : NAN;
+}
+
+void LocalContactSolver::AssembleJacobian()
+{
+  const Eigen::Index nc = rho_n_.size();
+  if (!sparse_) {
+    for (Eigen::Index c = 0; c < nc; ++c) {
+      const Eigen::Index o = 3 * c;
+      if (gd_.middleCols<3>(o).isZero(0)) J_.middleRows<3>(o).setZero(); // open: J rows = I
+      else J_.middleRows<3>(o).noalias() = gd_.middleCols<3>(o) * hW_.middleRows<3>(o);
+      J_.block<3, 3>(o, o) += Eigen::Matrix3d::Identity() - g_.middleCols<3>(o);
+    }
+    return;
+  }
+  std::fill(Js_.valuePtr(), Js_.valuePtr() + Js_.nonZeros(), 0.0);
+  for (Eigen::Index j = 0; j < hWs_.outerSize(); ++j)
+    for (Eigen::SparseMatrix<PetscReal>::InnerIterator it(hWs_, j); it; ++it) {
+      const Eigen::Index i = it.index(), o = 3 * (i / 3);
+      for (int a = 0; a < 3; ++a) {
+        const PetscReal gd = gd_(a, i);
+        if (gd != 0) Js_.coeffRef(o + a, j) += gd * it.value();
+      }
+    }
+  for (Eigen::Index c = 0; c < nc; ++c)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) Js_.coeffRef(3 * c + a, 3 * c + b) += (a == b ? 1.0 : 0.0) - g_(a, 3 * c + b);
+}
+
+bool LocalContactSolver::Factor()
+{
+  AssembleJacobian();
+  ++factorisations_;
+  factor_valid_ = false;
+  if (!sparse_) lu_.compute(J_);
+  else {
+    slu_.factorize(Js_);
+    if (slu_.info() != Eigen::Success) return false;
+  }
+  factor_valid_ = true;
+  return true;
+}
+
+bool LocalContactSolver::Direction()
+{
+  if (!sparse_) d_.noalias() = lu_.solve(F_);
+  else d_ = slu_.solve(F_);
+  d_ = -d_;
+  return d_.allFinite();
+}
+
+LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
+{
+  const Eigen::Index nc = rho_n_.size();
+  p_.mu                 = cs_->mu;
+  ++newton_solves_;
+  r0_ = r;
+  if (sparse_) v_.noalias() = hWs_ * r;
+  else v_.noalias() = hW_ * r;
+  v_ += w_f;
+  PetscReal phi = Residual(gap0, r, v_, F_, true);
+  PetscInt  k   = 0;
+  bool      ok  = false;
+  for (;; ++k) {
+    if (std::isnan(phi)) break;
+    PetscReal rn_sum = 0;
+    for (Eigen::Index c = 0; c < nc; ++c) rn_sum += r[3 * c + kN];
+    // The fixed point's test, on one Jacobi pass: the polishing passes below then stop at once.
+    if (!(F_.lpNorm<1>() > p_.tol * (p_.r_ref + rn_sum))) {
+      ok = true;
+      break;
+    }
+    if (k == newton_max_it_) break;
+    // A kept factorisation first (chord step, accepted if it halves ||F||); else a fresh one at r
+    // with backtracking on ||F||_2 (Armijo with a small slope, as F is only semi-smooth).
+    bool accepted = false;
+    for (int attempt = 0; attempt < 2 && !accepted; ++attempt) {
+      // In the second half of the iteration budget, plain Newton (a fresh J at every iteration):
+      // chord steps that only halve ||F|| would otherwise run into the limit and the fallback.
+      const bool fresh = !factor_valid_ || 2 * k >= newton_max_it_;
+      if (fresh && !Factor()) break;
+      if (!Direction()) {
+        factor_valid_ = false;
+        if (fresh) break;
+        continue;
+      }
+      if (sparse_) hWd_.noalias() = hWs_ * d_;
+      else hWd_.noalias() = hW_ * d_;
+      PetscReal alpha = 1;
+      for (int ls = 0; ls < (fresh ? 30 : 1) && !accepted; ++ls, alpha *= 0.5) {
+        rt_                  = r + alpha * d_;
+        vt_                  = v_ + alpha * hWd_;
+        const PetscReal phit = Residual(gap0, rt_, vt_, Ft_, false);
+        accepted             = fresh ? phit <= (1 - 1e-4 * alpha) * phi : phit <= 0.5 * phi;
+      }
+      if (!accepted) {
+        factor_valid_ = false;
+        if (fresh) break;
+      }
+    }
+    if (!accepted) break;
+    r  = rt_;
+    v_ = vt_;
+    phi = Residual(gap0, r, v_, F_, true);
+  }
+  newton_steps_ += k;
+  LocalSolveInfo info;
+  if (ok) info = Passes(w_f, gap0, r); // the fixed point's own stopping test (and v = w_f + h W r)
+  if (!ok || !info.converged) {
+    // Newton failed (or left a point the passes could not finish from): the fixed point from the
+    // starting guess, which is then exactly the fixed point's own solve.
+    ++fallbacks_;
+    r             = r0_;
+    info          = Passes(w_f, gap0, r);
+    info.fallback = true;
+  }
+  info.iterations += k;
+  return info;
 }
 
 void LocalContactSolver::Status(const Eigen::VectorXd &r, std::vector<int> &status) const

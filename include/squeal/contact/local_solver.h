@@ -13,12 +13,29 @@
 // The passes are written once (ContactPasses) for any storage: Solve runs them on run-time sizes,
 // SolveSized on compile-time sizes for the fixed-size dense step kernels (integration/step_kernel.h),
 // where fixed-size loops cost about half the instructions of the dynamic ones on 3 x 3 data.
+//
+// Alternative solver (SetSolver(kNewton)): a semi-smooth Newton on the same fixed-point equations,
+// F(r) = r - P(r) = 0 with P one Jacobi pass of the projections above (Alart-Curnier augmented
+// Lagrangian form). With x = r - D (v - (V_c, 0, 0)) (+ the gap term), D = diag(rho_t, rho_t, h rho_n)
+// per point, v = w_f + h W r, a generalised Jacobian is J = I - G (I - D h W), G block diagonal: the
+// Jacobian of each point's projection at x (open: 0; stick: I; slip: radial part of the disc, or the
+// clamp's d/dx_n for rectilinear friction). Each iteration solves J d = -F by LU (dense W:
+// PartialPivLU, O((3 n_c)^3); sparse W: SparseLU on the block pattern of W). The factorisation costs
+// as much as ~(3 n_c)/3 fixed-point passes, so it is kept, across iterations and steps, as long as
+// the step it gives (a chord step, O((3 n_c)^2)) halves ||F||_2; otherwise J is refactorised at
+// the current point and the Newton step halved until ||F||_2 decreases. Converged (||F||_1 below the fixed point's criterion), the fixed-point
+// passes run from the Newton solution, so that the result passes the same stopping test as the fixed
+// point (usually one pass). Failure (non-finite step, no decrease, iteration limit) restarts the
+// fixed point from the starting guess: the result is then the fixed point's own, and the fallback is
+// reported (LocalSolveInfo::fallback, Fallbacks()). Iterations count Newton steps plus passes.
 #pragma once
 
 #include "squeal/contact/contact_set.h"
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 #include <Eigen/SparseCore>
+#include <Eigen/SparseLU>
 
 #include <algorithm>
 #include <cmath>
@@ -29,10 +46,15 @@ namespace squeal {
 
 enum ContactStatus : int { kOpen = 0, kStick = 1, kSlip = 2 };
 
+// Local contact solver: projected Gauss-Seidel fixed point, or semi-smooth Newton (with the fixed
+// point as fallback).
+enum class ContactSolver : int { kFixedPoint = 0, kNewton = 1 };
+
 struct LocalSolveInfo {
-  PetscInt  iterations = 0;
+  PetscInt  iterations = 0; // fixed point: passes; Newton: Newton steps + passes (polish or fallback)
   PetscReal residual   = 0; // last sum ||dr||_1 / (R_ref + sum r_n)
   bool      converged  = false;
+  bool      fallback   = false; // Newton failed and the fixed point from the starting guess gave r
 };
 
 // Scalars of the fixed point, shared by every instantiation of ContactPasses.
@@ -126,6 +148,16 @@ public:
     p_.max_it = max_it;
     p_.r_ref  = r_ref;
   }
+  // The solver of Solve (after Setup; default fixed point) and Newton's iteration limit. Newton's
+  // work arrays (a 3 n_c square matrix and its LU) are sized here, not in Solve. SolveSized always
+  // runs the fixed point.
+  void SetSolver(ContactSolver s, PetscInt newton_max_it = 30);
+  ContactSolver Solver() const { return solver_; }
+  // Counters since Setup: Newton solves, of which fell back to the fixed point, and Newton steps.
+  PetscInt NewtonSolves() const { return newton_solves_; }
+  PetscInt Fallbacks() const { return fallbacks_; }
+  PetscInt NewtonSteps() const { return newton_steps_; }
+  PetscInt Factorisations() const { return factorisations_; }
   // r holds the starting guess (the previous step's reaction) and returns the solution.
   LocalSolveInfo Solve(const Eigen::VectorXd &w_f, const Eigen::VectorXd &gap0, Eigen::VectorXd &r);
   // The same on NC points known at compile time (Eigen::Dynamic: any); NC must equal Setup's n_c.
@@ -140,7 +172,10 @@ public:
     Eigen::Map<Eigen::Matrix<PetscReal, M, 1>>             v(v_.data(), 3 * nc);
     p_.mu          = cs_->mu; // read at every solve, as callers may change mu between steps
     p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
-    if constexpr (M == Eigen::Dynamic) return ContactPasses(p_, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+    if constexpr (M == Eigen::Dynamic) {
+      if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r);
+      return ContactPasses(p_, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+    }
     else { // work on local copies, which the compiler can keep in registers
       Eigen::Matrix<PetscReal, M, 1> rl = r, vl;
       const LocalSolveInfo           info = ContactPasses(p_, hW, rho_n, rho_t, speed, w_f, gap0, rl, vl);
@@ -157,12 +192,34 @@ public:
   PetscReal RhoT(PetscInt c) const { return rho_t_[c]; }
 
 private:
+  using CRef = Eigen::Ref<const Eigen::VectorXd>;
+  using Ref  = Eigen::Ref<Eigen::VectorXd>;
+  LocalSolveInfo SolveNewton(CRef w_f, CRef gap0, Ref r);
+  LocalSolveInfo Passes(CRef w_f, CRef gap0, Ref r); // the fixed point on the dense or sparse W
+  // F = r - P(r) at v = w_f + h W r; returns ||F||_2 (NaN if not finite). With jac, also the
+  // per-point G_c D_c (gd_) and G_c (g_) of the generalised Jacobian.
+  PetscReal Residual(CRef gap0, CRef r, CRef v, Eigen::VectorXd &F, bool jac);
+  void      AssembleJacobian(); // J = I - G + G D h W from g_, gd_
+  bool      Factor();           // assembles and factorises J at the current point; false if unusable
+  bool      Direction();        // d_ = -J^-1 F_ with the factor held; false if not finite
+
   const ContactSet *cs_ = nullptr;
   Eigen::MatrixXd   hW_; // h W
   Eigen::SparseMatrix<PetscReal> hWs_; // h W when set up sparse (then hW_ is empty)
   bool              sparse_ = false;
   Eigen::VectorXd   v_, rho_n_, rho_t_, speed_;
   FixedPointParams  p_;
+  // Newton
+  ContactSolver   solver_        = ContactSolver::kFixedPoint;
+  PetscInt        newton_max_it_ = 30;
+  PetscInt        newton_solves_ = 0, fallbacks_ = 0, newton_steps_ = 0, factorisations_ = 0;
+  bool            factor_valid_  = false; // lu_ / slu_ hold a J from an earlier point (kept across solves)
+  Eigen::VectorXd r0_, F_, Ft_, d_, rt_, vt_, hWd_;
+  Eigen::Matrix<PetscReal, 3, Eigen::Dynamic> g_, gd_; // per point (3 x 3 blocks side by side): G_c, G_c D_c
+  Eigen::MatrixXd                       J_;            // dense W
+  Eigen::PartialPivLU<Eigen::MatrixXd>  lu_;
+  Eigen::SparseMatrix<PetscReal>        Js_;           // sparse W: J on the 3 x 3 block pattern of W
+  Eigen::SparseLU<Eigen::SparseMatrix<PetscReal>, Eigen::COLAMDOrdering<int>> slu_;
 };
 
 } // namespace squeal

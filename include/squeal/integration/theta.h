@@ -8,7 +8,7 @@
 // Every step:
 //   (S4) A v_f = B dU^i - h K U^i + h F
 //   (S5) w_f = H^T v_f,  g~^i_n = H_n^T (U^i + h(1-theta) dU^i) + g0
-//   (S6-7) local fixed point on r (LocalContactSolver)
+//   (S6-7) local fixed point on r, or semi-smooth Newton (-theta_contact_solver; LocalContactSolver)
 //   (S8) dU^{i+1} = v_f + h Y r,   (S9) U^{i+1} = U^i + h (theta dU^{i+1} + (1-theta) dU^i)
 // Sparse back end with many contacts (3 n_c > -theta_delassus_max; default -1: whenever the product
 // with Y would cost more than one more solve, N 3 n_c > 2 nnz(factor of A)): no N x 3 n_c matrix is stored. (S2) keeps W = H^T A^-1 H sparse: each column from one solve, entries with
@@ -63,7 +63,11 @@ public:
   // block by Cholesky, to relative residual cg_rtol), "redundant" (every rank factorises the whole A)
   // or "auto" (redundant); one rank always factorises A.
   PetscErrorCode SetParallelSolver(const char *name, PetscReal cg_rtol);
-  // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*.
+  // Local contact solver (S6-7): "fp" (fixed point), "ssn" (semi-smooth Newton, fixed point as
+  // fallback, LocalContactSolver), "auto" (ssn from n_c >= 450 on: the measured break-even, theta.cpp); Newton's iteration limit.
+  PetscErrorCode SetContactSolver(const char *name, PetscInt ssn_max_it);
+  // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*,
+  // -theta_contact_solver, -theta_ssn_max_it.
   PetscErrorCode SetFromOptions();
   // (S1)-(S3) for step size h; call again whenever h changes.
   PetscErrorCode SetUp(const Model &model, PetscReal h);
@@ -127,6 +131,7 @@ private:
   std::string  prefix_   = "theta_";
   PetscReal    theta_    = 0.5, h_ = 0, fp_tol_ = 1e-12, rho_scale_ = 1.0, r_ref_ = 1.0;
   PetscInt     fp_max_it_ = 500, dense_max_ = 200;
+  PetscInt     contact_solver_ = 0, ssn_max_it_ = 30; // -theta_contact_solver: 0 fp, 1 ssn, 2 auto
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;

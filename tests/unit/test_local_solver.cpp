@@ -1,0 +1,372 @@
+// The one-step local contact problem (docs/method.md §2, §5 (S6)-(S7)): the semi-smooth Newton of
+// LocalContactSolver against problems built from a known solution (every state of a point: open,
+// stick, slip, planar and rectilinear; several points coupled through a random SPD W, dense and
+// sparse), against the fixed point along a sequence of problems whose statuses change, the fallback
+// to the fixed point, and whole transients with -theta_contact_solver ssn against fp.
+#include "dense.h"
+#include "squeal/contact/local_solver.h"
+#include "squeal/integration/theta.h"
+#include "squeal/model/builders.h"
+#include "squeal/integration/transient.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+#include <random>
+
+using namespace squeal;
+
+namespace {
+
+ContactSet MakeSet(PetscInt nc, PetscReal mu, FrictionLaw law, std::mt19937 &gen)
+{
+  ContactSet                             cs;
+  std::uniform_real_distribution<double> u(0.5, 1.5);
+  cs.mu  = mu;
+  cs.law = law;
+  cs.V   = 2.0;
+  cs.points.resize(nc);
+  for (auto &p : cs.points) p.speed_factor = u(gen);
+  return cs;
+}
+
+// Random SPD W with a dominant diagonal (unique solution for moderate mu), optionally block banded
+// (points more than `band` apart uncoupled) for the sparse overload.
+Eigen::MatrixXd RandomW(PetscInt nc, std::mt19937 &gen, PetscInt band = -1)
+{
+  std::normal_distribution<double> n(0, 1);
+  const Eigen::Index               m = 3 * nc;
+  Eigen::MatrixXd                  B(m, m);
+  for (Eigen::Index i = 0; i < m; ++i)
+    for (Eigen::Index j = 0; j < m; ++j) B(i, j) = (band < 0 || std::abs(i / 3 - j / 3) <= band) ? n(gen) : 0.0;
+  Eigen::MatrixXd W = 0.3 * B * B.transpose() / m;
+  if (band >= 0) // B B^T widens the band: cut back to it (the diagonal shift keeps it SPD)
+    for (Eigen::Index i = 0; i < m; ++i)
+      for (Eigen::Index j = 0; j < m; ++j)
+        if (std::abs(i / 3 - j / 3) > band) W(i, j) = 0;
+  W += Eigen::MatrixXd::Identity(m, m) * (1.0 + W.cwiseAbs().rowwise().sum().maxCoeff());
+  return W; // 1/kg: a few kg per point
+}
+
+enum State { kOpenS, kStickS, kSlipS };
+
+// A problem whose solution is r*: each point given a state, r* and the end velocity v* chosen to
+// satisfy that state's law exactly, then w_f = v* - h W r* and gap0 = -h v*_n for closed points.
+struct Problem {
+  Eigen::VectorXd w_f, gap0, r;
+};
+
+Problem Construct(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, const std::vector<State> &states, std::mt19937 &gen)
+{
+  std::uniform_real_distribution<double> u(0.2, 1.0), s(-1, 1);
+  const PetscInt                         nc = cs.Size();
+  const bool                             rect = cs.law == FrictionLaw::Rectilinear;
+  Eigen::VectorXd                        r = Eigen::VectorXd::Zero(3 * nc), v(3 * nc), gap0(nc);
+  for (PetscInt c = 0; c < nc; ++c) {
+    const Eigen::Index o = 3 * c;
+    const double       V = cs.Speed(c);
+    v[o + kN]            = s(gen);
+    if (states[c] == kOpenS) { // r = 0, end gap g = gap0 + h v_n > 0
+      v[o + kT]  = V + s(gen);
+      v[o + kB]  = s(gen);
+      gap0[c]    = -h * v[o + kN] + 1e-4 * u(gen);
+      continue;
+    }
+    gap0[c]   = -h * v[o + kN]; // closed: end gap 0
+    r[o + kN] = 1000 * u(gen);
+    const double a = cs.mu * r[o + kN];
+    if (states[c] == kStickS) { // zero slip, |r_T| < mu r_n
+      v[o + kT] = V;
+      v[o + kB] = rect ? s(gen) : 0.0; // rectilinear: b is frictionless, its velocity free
+      const double ang = M_PI * s(gen), f = 0.8 * u(gen);
+      r[o + kT] = a * f * std::cos(ang);
+      r[o + kB] = rect ? 0.0 : a * f * std::sin(ang);
+      if (rect) r[o + kT] = a * 0.9 * s(gen);
+    } else { // slip s != 0, r_T = -mu r_n s / |s| (rectilinear: -mu r_n sign(s_t), r_b = 0)
+      const double st = s(gen) + (s(gen) > 0 ? 0.3 : -0.3), sb = s(gen);
+      v[o + kT] = V + st;
+      v[o + kB] = sb;
+      if (rect) r[o + kT] = -a * (st > 0 ? 1 : -1);
+      else {
+        const double m = std::hypot(st, sb);
+        r[o + kT]      = -a * st / m;
+        r[o + kB]      = -a * sb / m;
+      }
+    }
+  }
+  return {v - h * W * r, gap0, r};
+}
+
+double RelErr(const Eigen::VectorXd &a, const Eigen::VectorXd &b) { return (a - b).lpNorm<Eigen::Infinity>() / (1 + b.lpNorm<Eigen::Infinity>()); }
+
+struct Solved {
+  Eigen::VectorXd r;
+  LocalSolveInfo  info;
+};
+
+Solved SolveOne(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, const Problem &pb, const Eigen::VectorXd &r0, bool newton,
+           bool sparse = false, PetscInt newton_max_it = 30)
+{
+  LocalContactSolver ls;
+  if (sparse) ls.Setup(cs, Eigen::SparseMatrix<PetscReal>(W.sparseView()), h, 1.0);
+  else ls.Setup(cs, W, h, 1.0);
+  ls.SetTolerances(1e-14, 100000, 1.0);
+  if (newton) ls.SetSolver(ContactSolver::kNewton, newton_max_it);
+  Solved s{r0, {}};
+  s.info = ls.Solve(pb.w_f, pb.gap0, s.r);
+  EXPECT_EQ(ls.Fallbacks(), s.info.fallback ? 1 : 0);
+  return s;
+}
+
+void ExpectStates(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, const Eigen::VectorXd &r, const std::vector<State> &states)
+{
+  LocalContactSolver ls;
+  ls.Setup(cs, W, h, 1.0);
+  std::vector<int> st;
+  ls.Status(r, st);
+  for (size_t c = 0; c < states.size(); ++c)
+    EXPECT_EQ(st[c], states[c] == kOpenS ? kOpen : states[c] == kStickS ? kStick : kSlip) << "point " << c;
+}
+
+} // namespace
+
+// One point in each state and law, from a cold (zero) and a far start: Newton, the fixed point and
+// the constructed solution agree to 1e-12.
+TEST(LocalSolver, NewtonMatchesConstructedSolutionOnePoint)
+{
+  std::mt19937 gen(1);
+  const double h = 1e-4;
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear})
+    for (State st : {kOpenS, kStickS, kSlipS})
+      for (int start = 0; start < 2; ++start) {
+        const ContactSet      cs = MakeSet(1, 0.3, law, gen);
+        const Eigen::MatrixXd W  = RandomW(1, gen);
+        const Problem         pb = Construct(cs, W, h, {st}, gen);
+        const Eigen::VectorXd r0 = start ? Eigen::VectorXd(Eigen::Vector3d(-500, 800, 3000)) : Eigen::VectorXd::Zero(3);
+        const Solved          n = SolveOne(cs, W, h, pb, r0, true), f = SolveOne(cs, W, h, pb, r0, false);
+        SCOPED_TRACE(::testing::Message() << FrictionLawName(law) << " state " << st << " start " << start);
+        EXPECT_TRUE(n.info.converged);
+        EXPECT_FALSE(n.info.fallback);
+        EXPECT_LT(RelErr(n.r, pb.r), 1e-12);
+        EXPECT_LT(RelErr(f.r, pb.r), 1e-12);
+        EXPECT_LT(RelErr(n.r, f.r), 1e-12);
+        ExpectStates(cs, W, h, n.r, {st});
+      }
+}
+
+// Many coupled points in mixed states through a dense random SPD W, dense and sparse overloads.
+TEST(LocalSolver, NewtonMatchesConstructedSolutionMixedStates)
+{
+  std::mt19937 gen(7);
+  const double h = 1e-4;
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear})
+    for (PetscInt band : {-1, 2}) {
+      const PetscInt        nc = 24;
+      const ContactSet      cs = MakeSet(nc, 0.3, law, gen);
+      const Eigen::MatrixXd W  = RandomW(nc, gen, band);
+      std::vector<State>    states(nc);
+      for (PetscInt c = 0; c < nc; ++c) states[c] = State(c % 3);
+      std::shuffle(states.begin(), states.end(), gen);
+      const Problem pb = Construct(cs, W, h, states, gen);
+      Eigen::VectorXd r0 = Eigen::VectorXd::Zero(3 * nc);
+      for (PetscInt c = 0; c < nc; ++c) r0[3 * c + kN] = 500; // all points pressed, none in its final state
+      SCOPED_TRACE(::testing::Message() << FrictionLawName(law) << " band " << band);
+      const Solved f = SolveOne(cs, W, h, pb, r0, false);
+      EXPECT_TRUE(f.info.converged);
+      EXPECT_LT(RelErr(f.r, pb.r), 1e-12);
+      for (bool sparse : {false, true}) {
+        if (sparse && band < 0) continue;
+        const Solved n = SolveOne(cs, W, h, pb, r0, true, sparse);
+        EXPECT_TRUE(n.info.converged) << "sparse " << sparse;
+        EXPECT_FALSE(n.info.fallback) << "sparse " << sparse;
+        EXPECT_LT(RelErr(n.r, pb.r), 1e-12) << "sparse " << sparse;
+        EXPECT_LT(RelErr(n.r, f.r), 1e-12) << "sparse " << sparse;
+        EXPECT_LT(n.info.iterations, f.info.iterations) << "sparse " << sparse;
+        ExpectStates(cs, W, h, n.r, states);
+      }
+    }
+}
+
+// A sequence of problems, each warm-started from the last solution, whose points change state
+// (open -> stick -> slip -> open ...): Newton and the fixed point agree at every one.
+TEST(LocalSolver, NewtonFollowsTransitionsLikeFixedPoint)
+{
+  std::mt19937 gen(11);
+  const double   h  = 1e-4;
+  const PetscInt nc = 9;
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
+    const ContactSet      cs = MakeSet(nc, 0.4, law, gen);
+    const Eigen::MatrixXd W  = RandomW(nc, gen);
+    LocalContactSolver    fp, nw;
+    fp.Setup(cs, W, h, 1.0), nw.Setup(cs, W, h, 1.0);
+    fp.SetTolerances(1e-14, 100000, 1.0), nw.SetTolerances(1e-14, 100000, 1.0);
+    nw.SetSolver(ContactSolver::kNewton);
+    Eigen::VectorXd rf = Eigen::VectorXd::Zero(3 * nc), rn = rf;
+    int             changes = 0;
+    std::vector<State> prev(nc, kOpenS);
+    for (int k = 0; k < 12; ++k) {
+      std::vector<State> states(nc);
+      for (PetscInt c = 0; c < nc; ++c) states[c] = State((c + k) % 3);
+      for (PetscInt c = 0; c < nc; ++c) changes += states[c] != prev[c];
+      prev             = states;
+      const Problem pb = Construct(cs, W, h, states, gen);
+      const LocalSolveInfo fi = fp.Solve(pb.w_f, pb.gap0, rf), ni = nw.Solve(pb.w_f, pb.gap0, rn);
+      EXPECT_TRUE(fi.converged && ni.converged) << "problem " << k;
+      EXPECT_LT(RelErr(rn, pb.r), 1e-12) << FrictionLawName(law) << " problem " << k;
+      EXPECT_LT(RelErr(rn, rf), 1e-12) << FrictionLawName(law) << " problem " << k;
+      EXPECT_LT((nw.Velocity() - fp.Velocity()).lpNorm<Eigen::Infinity>(), 1e-12 * (1 + fp.Velocity().lpNorm<Eigen::Infinity>()));
+    }
+    EXPECT_GE(changes, 11 * nc); // every point changes state at every problem but the first
+    EXPECT_EQ(nw.NewtonSolves(), 12);
+    EXPECT_GE(nw.Factorisations(), 1);
+    EXPECT_LE(nw.Factorisations(), nw.NewtonSteps());
+    EXPECT_EQ(nw.Fallbacks(), 0) << FrictionLawName(law);
+  }
+}
+
+// Newton made to fail (one iteration from a far start; a W whose Newton system is singular):
+// the fixed point from the starting guess gives exactly its own result, and the fallback is counted.
+TEST(LocalSolver, NewtonFailureFallsBackToFixedPoint)
+{
+  std::mt19937 gen(3);
+  const double   h  = 1e-4;
+  const PetscInt nc = 6;
+  const ContactSet      cs = MakeSet(nc, 0.3, FrictionLaw::Planar, gen);
+  const Eigen::MatrixXd W  = RandomW(nc, gen);
+  std::vector<State>    states(nc);
+  for (PetscInt c = 0; c < nc; ++c) states[c] = State(c % 3);
+  const Problem   pb = Construct(cs, W, h, states, gen);
+  const Eigen::VectorXd r0 = Eigen::VectorXd::Constant(3 * nc, 300.0);
+  const Solved    f = SolveOne(cs, W, h, pb, r0, false), n = SolveOne(cs, W, h, pb, r0, true, false, 1);
+  EXPECT_TRUE(n.info.fallback);
+  EXPECT_TRUE(n.info.converged);
+  EXPECT_EQ(n.r, f.r); // the fixed point's own iterates
+  EXPECT_EQ(n.info.iterations, f.info.iterations + 1);
+
+  // Two identical points: W singular, so is J on closed points; the dense LU gives non-finite steps.
+  ContactSet      cs2 = MakeSet(2, 0.3, FrictionLaw::Planar, gen);
+  Eigen::MatrixXd W2(6, 6);
+  W2 << W.topLeftCorner(3, 3), W.topLeftCorner(3, 3), W.topLeftCorner(3, 3), W.topLeftCorner(3, 3);
+  cs2.points[1].speed_factor = cs2.points[0].speed_factor;
+  Problem pb2;
+  pb2.w_f  = Eigen::VectorXd::Zero(6);
+  pb2.gap0 = Eigen::VectorXd::Constant(2, -1e-6); // both pressed in: both closed at the solution
+  for (int c = 0; c < 2; ++c) pb2.w_f[3 * c + kT] = cs2.Speed(c) + 0.5;
+  const Solved f2 = SolveOne(cs2, W2, h, pb2, Eigen::VectorXd::Zero(6), false), n2 = SolveOne(cs2, W2, h, pb2, Eigen::VectorXd::Zero(6), true);
+  EXPECT_TRUE(f2.info.converged);
+  PetscPrintf(PETSC_COMM_WORLD, "singular W: Newton %s after %d iterations\n", n2.info.fallback ? "fell back to the fixed point" : "converged",
+              (int)(n2.info.iterations - (n2.info.fallback ? f2.info.iterations : 1)));
+  if (n2.info.fallback) {
+    EXPECT_EQ(n2.r, f2.r);
+  }
+  // Either way the reactions are a solution: equal loads sharing the impulse (W r is what is fixed).
+  EXPECT_LT(RelErr(W2 * n2.r, W2 * f2.r), 1e-12);
+}
+
+// Whole transients through ThetaIntegrator: -theta_contact_solver ssn against fp on the 3-DOF
+// (separation/slip and stick/slip cases, run-time-sized dense kernel) and on a 6-cell chain on the
+// dense and the sparse back end (dense and sparse W): the same states to round-off.
+TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
+{
+  struct Case {
+    bool    chain;
+    double  V;
+    PetscInt dense_max, delassus_max;
+  };
+  for (const Case cse : {Case{false, 3.0, 200, -1}, Case{false, 0.75, 200, -1}, Case{true, 0, 200, -1}, Case{true, 0, 0, 1000},
+                         Case{true, 0, 0, 0}}) {
+    Model model;
+    if (cse.chain) {
+      ChainParams p;
+      p.cells = 6;
+      ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, p, model), 0);
+    } else {
+      ThreeDofParams p;
+      p.V = cse.V;
+      ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, p, model), 0);
+    }
+    EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+    SlidingEquilibrium eq;
+    ASSERT_EQ(eqs.Solve(model, eq), 0);
+    const PetscInt nc = model.contacts.Size(), N = model.Size();
+    struct Integration {
+      ThetaIntegrator ti{PETSC_COMM_WORLD};
+      Vec             U = nullptr, dU = nullptr;
+      Eigen::VectorXd r;
+      ~Integration()
+      {
+        VecDestroy(&U);
+        VecDestroy(&dU);
+      }
+    } run[2]; // fp, ssn
+    for (int k = 0; k < 2; ++k) {
+      ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
+      ASSERT_EQ(run[k].ti.SetDenseMax(cse.dense_max), 0);
+      ASSERT_EQ(run[k].ti.SetDelassusMax(cse.delassus_max, 0.0), 0);
+      ASSERT_EQ(run[k].ti.SetContactSolver(k ? "ssn" : "fp", 30), 0);
+      ASSERT_EQ(run[k].ti.SetUp(model, 1e-5), 0);
+      ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
+      ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
+      ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
+      // Away from the equilibrium: lift-off and impacts (3-DOF case 1, the chain), stick (case 2).
+      Eigen::VectorXd dU0(N);
+      for (PetscInt i = 0; i < N; ++i) dU0[i] = 0.3 * std::sin(1.0 + 2.0 * i);
+      if (!cse.chain) {
+        if (cse.V > 1) dU0 = Eigen::Vector3d(0.4, -0.3, 0.25);
+        else dU0 = Eigen::Vector3d(cse.V, 0, 0.02);
+      }
+      std::vector<PetscInt> idx(N);
+      for (PetscInt i = 0; i < N; ++i) idx[i] = i;
+      PetscInt lo, hi;
+      ASSERT_EQ(VecGetOwnershipRange(run[k].dU, &lo, &hi), 0);
+      for (PetscInt i = lo; i < hi; ++i) ASSERT_EQ(VecSetValue(run[k].dU, i, dU0[i], INSERT_VALUES), 0);
+      ASSERT_EQ(VecAssemblyBegin(run[k].dU), 0);
+      ASSERT_EQ(VecAssemblyEnd(run[k].dU), 0);
+      run[k].r = Eigen::VectorXd::Zero(3 * nc);
+      for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[c], run[k].r[3 * c + kT] = model.contacts.mu * eq.N[c];
+    }
+    ASSERT_EQ(run[1].ti.Contact().Solver(), ContactSolver::kNewton);
+    ASSERT_FALSE(run[1].ti.FixedSizeKernel());
+    ASSERT_EQ(run[0].ti.SparseDelassus(), run[1].ti.SparseDelassus());
+    const PetscInt steps = 3000;
+    double         maxdiff = 0, scale = 0;
+    long           its[2] = {0, 0};
+    int            seen[3] = {0, 0, 0};
+    std::vector<int> status;
+    for (PetscInt i = 0; i < steps; ++i) {
+      StepInfo info[2];
+      for (int k = 0; k < 2; ++k) {
+        ASSERT_EQ(run[k].ti.Step(run[k].U, run[k].dU, run[k].r, &info[k]), 0);
+        ASSERT_TRUE(info[k].contact.converged);
+        its[k] += info[k].contact.iterations;
+      }
+      const Eigen::VectorXd a = test::ToDense(run[0].dU), b = test::ToDense(run[1].dU);
+      maxdiff = std::max(maxdiff, (a - b).lpNorm<Eigen::Infinity>());
+      scale   = std::max(scale, a.lpNorm<Eigen::Infinity>());
+      run[0].ti.Contact().Status(run[0].r, status);
+      for (int s : status) ++seen[s];
+    }
+    EXPECT_LT(maxdiff, 1e-9 * scale) << "chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
+    EXPECT_EQ(run[1].ti.Contact().NewtonSolves(), steps);
+    EXPECT_EQ(run[1].ti.Contact().Fallbacks(), 0);
+    PetscPrintf(PETSC_COMM_WORLD,
+                "%s%s: open/stick/slip %d/%d/%d, iterations per step fp %.2f ssn %.2f (Newton %.2f, %d factorisations, fallbacks %d), "
+                "largest |dU| difference %.2e of %.2e\n",
+                cse.chain ? "chain 6" : "3-DOF", cse.chain ? (cse.dense_max ? " dense" : cse.delassus_max ? " sparse, dense W" : " sparse W") : (cse.V > 1 ? " case 1" : " case 2"),
+                seen[0], seen[1], seen[2], (double)its[0] / steps, (double)its[1] / steps,
+                (double)run[1].ti.Contact().NewtonSteps() / steps, (int)run[1].ti.Contact().Factorisations(),
+                (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale);
+  }
+}
+
+TEST(LocalSolver, BadContactSolverOptionIsRejected)
+{
+  ThetaIntegrator ti(PETSC_COMM_WORLD);
+  PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
+  EXPECT_NE(ti.SetContactSolver("newton", 30), 0);
+  EXPECT_NE(ti.SetContactSolver("ssn", 0), 0);
+  PetscPopErrorHandler();
+  EXPECT_EQ(ti.SetContactSolver("auto", 5), 0);
+}
