@@ -315,10 +315,6 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   for (PetscInt c = 0; c < nc_; ++c) g0_[c] = model.contacts.points[c].g0;
   wf_.resize(3 * nc_);
   gap_.resize(nc_);
-  loc_dq_.resize(3 * nc_);
-  // Work vectors of the energy bookkeeping, so that it allocates nothing per step either.
-  PetscCall(VecDuplicate(model.F, dq_.out()));
-  PetscCall(VecDuplicate(model.F, cq_.out()));
   if (dense_) PetscCall(SetUpDense());
   else PetscCall(SetUpSparse());
   auto Wd = [&](PetscInt i) { return sparse_w_ ? Ws_.coeff(i, i) : W_(i, i); };
@@ -781,37 +777,6 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
   dU += h * (t * tvf_ + (1 - t) * ddU);
   if (dh) dU.noalias() += (t * *step->dUn + (1 - t) * *step->dUi) * *dh;
   ddU = tvf_;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode ThetaIntegrator::Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic)
-{
-  PetscScalar ek, ee;
-  PetscFunctionBeginUser;
-  PetscCall(MatMult(model_->M, dU, cq_));
-  PetscCall(VecDot(dU, cq_, &ek));
-  PetscCall(MatMult(model_->K, U, cq_));
-  PetscCall(VecDot(U, cq_, &ee));
-  *kinetic = 0.5 * PetscRealPart(ek);
-  *elastic = 0.5 * PetscRealPart(ee);
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode ThetaIntegrator::Work(Vec U0, Vec U1, const Eigen::VectorXd &r, PetscReal *damping, PetscReal *reactions,
-                                     PetscReal *load)
-{
-  PetscScalar wc = 0, wf;
-  PetscFunctionBeginUser;
-  PetscCall(VecWAXPY(dq_, -1.0, U0, U1)); // h ub
-  if (model_->HasDamping()) {
-    PetscCall(MatMult(model_->C, dq_, cq_));
-    PetscCall(VecDot(dq_, cq_, &wc));
-  }
-  PetscCall(VecDot(dq_, model_->F, &wf));
-  if (nc_ > 0) PetscCall(Local(dq_, loc_dq_));
-  *damping   = PetscRealPart(wc) / h_;
-  *load      = PetscRealPart(wf);
-  *reactions = nc_ > 0 ? loc_dq_.dot(r) : 0.0;
   PetscFunctionReturn(0);
 }
 

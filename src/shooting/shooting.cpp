@@ -622,13 +622,15 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
   if (!ascii) PetscFunctionReturn(0);
+  char recycled[64] = "";
+  if (res.recycled_columns > 0) std::snprintf(recycled, sizeof recycled, ", %" PetscInt_FMT " of them recycled directions", res.recycled_columns);
   PetscCall(PetscViewerASCIIPrintf(viewer,
                                    "shooting: %s in %" PetscInt_FMT " Newton iteration(s) (%" PetscInt_FMT
                                    " corrections applied), %" PetscInt_FMT " period integrations (Newton %" PetscInt_FMT
                                    ", Floquet %" PetscInt_FMT "; %" PetscInt_FMT " of them linear tangent integrations of %" PetscInt_FMT
-                                   " columns in all, %" PetscInt_FMT " of them recycled directions), %" PetscInt_FMT " step set-ups\n",
+                                   " columns in all%s), %" PetscInt_FMT " step set-ups\n",
                                    res.reason.c_str(), res.iterations, res.corrections, res.flow_evaluations, res.newton_evaluations,
-                                   res.floquet_evaluations, res.tangent_evaluations, res.tangent_columns, res.recycled_columns, res.setups));
+                                   res.floquet_evaluations, res.tangent_evaluations, res.tangent_columns, recycled, res.setups));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));

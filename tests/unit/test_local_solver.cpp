@@ -314,8 +314,9 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
       Eigen::VectorXd dU0(N);
       for (PetscInt i = 0; i < N; ++i) dU0[i] = 0.3 * std::sin(1.0 + 2.0 * i);
       if (!cse.chain) {
-        if (cse.V > 1) dU0 = Eigen::Vector3d(0.4, -0.3, 0.25);
-        else dU0 = Eigen::Vector3d(cse.V, 0, 0.02);
+        // Element by element: a Vector3d assigned to the dynamic vector trips GCC 12's -Warray-bounds.
+        const double a[2][3] = {{0.4, -0.3, 0.25}, {cse.V, 0, 0.02}};
+        for (int i = 0; i < 3; ++i) dU0[i] = a[cse.V > 1 ? 0 : 1][i];
       }
       std::vector<PetscInt> idx(N);
       for (PetscInt i = 0; i < N; ++i) idx[i] = i;

@@ -99,10 +99,6 @@ public:
   // A' = theta C + 2 h theta^2 K and B' = -(1 - theta) C - 2 h theta (1 - theta) K. Dense back end.
   PetscErrorCode StepTangentSource(const Eigen::VectorXd &Ui, const Eigen::VectorXd &dUi, const Eigen::VectorXd &dUn,
                                    const Eigen::VectorXd &r, Eigen::VectorXd &c);
-  // Energies and the work done over a step from (U0, dU0) to (U1, dU1) with reaction r:
-  // damping  h ub^T C ub, reactions h ub^T H r, load h ub^T F, with ub = (U1 - U0)/h.
-  PetscErrorCode Energy(Vec U, Vec dU, PetscReal *kinetic, PetscReal *elastic);
-  PetscErrorCode Work(Vec U0, Vec U1, const Eigen::VectorXd &r, PetscReal *damping, PetscReal *reactions, PetscReal *load);
   // Local quantities x -> H^T x (replicated), e.g. gaps from U or contact velocities from dU.
   PetscErrorCode Local(Vec x, Eigen::VectorXd &out);
   PetscErrorCode View(PetscViewer viewer) const;
@@ -138,8 +134,7 @@ private:
 
   LocalContactSolver local_;
   Eigen::MatrixXd    W_;
-  Eigen::VectorXd    g0_, wf_, gap_, rhat_, loc_dq_;
-  VecH               dq_, cq_;
+  Eigen::VectorXd    g0_, wf_, gap_, rhat_;
 
   // dense back end
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
