@@ -124,17 +124,7 @@ PetscReal LocalContactSolver::Residual(CRef gap0, CRef r, CRef v, Eigen::VectorX
     const PetscReal    xb = r[o + kB] - rho_t_[c] * v[o + kB];
     const PetscReal    rn = std::max(0.0, xn), a = mu * rn;
     PetscReal          rt = xt, rb = xb;
-    if (rect) {
-      rt = std::min(a, std::max(-a, rt));
-      rb = 0;
-    } else {
-      const PetscReal m = std::hypot(rt, rb);
-      if (m > a) {
-        const PetscReal f = m > 0 ? a / m : 0.0;
-        rt *= f;
-        rb *= f;
-      }
-    }
+    ProjectFriction(rect, a, rt, rb);
     F[o + kT] = r[o + kT] - rt;
     F[o + kB] = r[o + kB] - rb;
     F[o + kN] = r[o + kN] - rn;

@@ -76,6 +76,23 @@ EIGEN_ALWAYS_INLINE void AddColumns(const Eigen::SparseMatrix<PetscReal> &hW, Ei
     for (Eigen::SparseMatrix<PetscReal>::InnerIterator it(hW, o + j[k]); it; ++it) v[it.index()] += it.value() * d[k];
 }
 
+// (r_t, r_b) onto the friction set of radius a: the disc (planar) or [-a, a] x {0} (rectilinear).
+// Shared by the fixed point and the semi-smooth Newton's residual, so that both solve one problem.
+EIGEN_ALWAYS_INLINE void ProjectFriction(bool rectilinear, PetscReal a, PetscReal &rt, PetscReal &rb)
+{
+  if (rectilinear) {
+    rt = std::min(a, std::max(-a, rt));
+    rb = 0;
+    return;
+  }
+  const PetscReal m = std::hypot(rt, rb);
+  if (m > a) {
+    const PetscReal f = m > 0 ? a / m : 0.0;
+    rt *= f;
+    rb *= f;
+  }
+}
+
 // The fixed-point passes on any Eigen storage (dynamic or fixed size): hW = h W (3 n_c square),
 // rho_n, rho_t, speed, gap0 per point, w_f and r per local row; v = w_f + h W r on return.
 // Always inlined: on fixed sizes r and v then stay in registers across the passes.
@@ -96,17 +113,7 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPassesLaw(const FixedPointParams &p, c
       PetscReal          rt = r[o + kT] - rho_t[c] * (v[o + kT] - speed[c]);
       PetscReal          rb = r[o + kB] - rho_t[c] * v[o + kB];
       const PetscReal    a  = p.mu * rn;
-      if constexpr (Rectilinear) {
-        rt = std::min(a, std::max(-a, rt));
-        rb = 0;
-      } else {
-        const PetscReal m = std::hypot(rt, rb);
-        if (m > a) {
-          const PetscReal f = m > 0 ? a / m : 0.0;
-          rt *= f;
-          rb *= f;
-        }
-      }
+      ProjectFriction(Rectilinear, a, rt, rb);
       const PetscReal dt = rt - r[o + kT], db = rb - r[o + kB], dn = rn - r[o + kN];
       // Only changed points update v (one branch instead of three), except on compile-time sizes,
       // where adding hW times zeros (v unchanged) costs less than the test.
