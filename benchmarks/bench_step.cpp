@@ -63,7 +63,7 @@ void Prepare(Prepared &p, PetscInt warm, PetscInt dense_max)
   PetscCallAbort(PETSC_COMM_WORLD, VecAXPBY(p.dU, -1e-5 * m.omega, 0.0, m.phi_im));
   const PetscInt nc = p.model.contacts.Size();
   p.r.setZero(3 * nc);
-  for (PetscInt c = 0; c < nc; ++c) p.r[3 * c + kT] = p.model.contacts.mu * p.eq.N[c], p.r[3 * c + kN] = p.eq.N[c];
+  for (PetscInt c = 0; c < nc; ++c) p.r[3 * c + kT] = p.model.contacts.Mu() * p.eq.N[c], p.r[3 * c + kN] = p.eq.N[c];
   StepInfo info;
   for (PetscInt i = 0; i < warm; ++i) PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
 }
@@ -276,7 +276,7 @@ void ChainScale(benchmark::State &state)
   PetscCallAbort(PETSC_COMM_WORLD, VecRestoreArray(p.dU, &du));
   const PetscInt nc = p.model.contacts.Size();
   p.r.setZero(3 * nc);
-  for (PetscInt c = 0; c < nc; ++c) p.r[3 * c + kT] = p.model.contacts.mu * p.eq.N[c], p.r[3 * c + kN] = p.eq.N[c];
+  for (PetscInt c = 0; c < nc; ++c) p.r[3 * c + kT] = p.model.contacts.Mu() * p.eq.N[c], p.r[3 * c + kN] = p.eq.N[c];
   StepInfo info;
   for (PetscInt i = 0; i < 20; ++i) PetscCallAbort(PETSC_COMM_WORLD, p.ti.Step(p.U, p.dU, p.r, &info));
   double passes = 0;

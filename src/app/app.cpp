@@ -1,4 +1,5 @@
 #include "squeal/app/app.h"
+#include "squeal/app/pipeline.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
@@ -32,12 +33,6 @@ std::string Num(PetscReal x)
   return b;
 }
 
-struct Request {
-  bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
-  bool continuation = false;
-  bool energy_named = false; // the energy curve is asked for, not only shooting's start
-};
-
 PetscErrorCode ReadScene(int argc, char **argv)
 {
   char      scene[PETSC_MAX_PATH_LEN];
@@ -51,25 +46,6 @@ PetscErrorCode ReadScene(int argc, char **argv)
   PetscCall(PetscOptionsInsertFileYAML(PETSC_COMM_WORLD, nullptr, scene, PETSC_TRUE));
   // The scene must not override the command line: insert the arguments again on top.
   PetscCall(PetscOptionsInsertArgs(nullptr, argc - 1, argv + 1));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode ParseAnalyses(char **names, PetscInt n, Request &req)
-{
-  PetscFunctionBeginUser;
-  for (PetscInt i = 0; i < n; ++i) {
-    const std::string a = names[i];
-    if (a == "stability") req.stability = true;
-    else if (a == "sweep") req.sweep = true;
-    else if (a == "transient") req.transient = req.stability = true; // starts from a mode
-    else if (a == "energy") req.energy = req.energy_named = req.stability = true;
-    else if (a == "shooting") req.shooting = req.energy = req.stability = true; // starts from the estimate
-    else if (a == "continuation") req.continuation = req.shooting = req.energy = req.stability = true; // from the shooting solution
-    else {
-      SETERRQ(PETSC_COMM_WORLD, kErrInput, "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation)",
-              a.c_str());
-    }
-  }
   PetscFunctionReturn(0);
 }
 
@@ -116,8 +92,8 @@ PetscErrorCode WriteModelInfo(const Model &model, io::H5Writer &out)
   PetscCall(out.WriteAttribute("/model", "name", model.name.c_str()));
   PetscCall(out.WriteAttribute("/model", "dofs", model.Size()));
   PetscCall(out.WriteAttribute("/model", "contact_points", model.contacts.Size()));
-  PetscCall(out.WriteAttribute("/model", "mu", model.contacts.mu));
-  PetscCall(out.WriteAttribute("/model", "V", model.contacts.V));
+  PetscCall(out.WriteAttribute("/model", "mu", model.contacts.Mu()));
+  PetscCall(out.WriteAttribute("/model", "V", model.contacts.V()));
   PetscCall(out.WriteAttribute("/model", "friction", FrictionLawName(model.contacts.law)));
   if (model.mesh) PetscCall(WriteMesh(*model.mesh, out));
   PetscFunctionReturn(0);
@@ -141,193 +117,166 @@ PetscErrorCode Checkpoint(MPI_Comm comm, io::H5Writer &out, const char *done)
           out.Path().c_str());
 }
 
-// Every component of a run, on one communicator: the world, or rank 0 alone for a reduced model.
-struct Components {
-  EquilibriumSolver eqs;
-  StabilitySolver   stab;
-  SweepSolver       sweep;
-  ThetaIntegrator   theta;
-  TransientAnalysis transient;
-  EnergyAnalysis    energy;
-  Shooting          shooting;
-  Continuation      continuation;
-  explicit Components(MPI_Comm c) : eqs(c), stab(c), sweep(c), theta(c), transient(c), energy(c), shooting(c), continuation(c) {}
-  PetscErrorCode SetFromOptions(const Model &model, const Request &req)
-  {
-    PetscFunctionBeginUser;
-    PetscCall(eqs.SetFromOptions());
-    PetscCall(stab.SetFromOptions());
-    PetscCall(sweep.SetFromOptions(model.contacts.V));
-    PetscCall(theta.SetFromOptions());
-    PetscCall(transient.SetFromOptions());
-    PetscCall(energy.SetFromOptions());
-    energy.full_scan = req.energy_named;
-    PetscCall(shooting.SetFromOptions());
-    PetscCall(continuation.SetFromOptions());
-    PetscFunctionReturn(0);
-  }
-};
-
 struct Stages {
   PetscLogStage eq, stab, sweep, transient, energy, shooting;
 };
 
-// The analyses the request names, in order, each written and flushed to `output` before the next.
-PetscErrorCode RunAnalyses(MPI_Comm comm, Model &model, Components &k, const Request &req, const char *output, const Stages &st)
+// The verdict of the stability analysis, in words; energy, shooting and continuation need it decided.
+PetscErrorCode ReportStability(MPI_Comm comm, const StabilityResult &res, const Request &req)
 {
-  EquilibriumSolver &eqs          = k.eqs;
-  StabilitySolver   &stab         = k.stab;
-  SweepSolver       &sweep        = k.sweep;
-  ThetaIntegrator   &theta        = k.theta;
-  TransientAnalysis &transient    = k.transient;
-  EnergyAnalysis    &energy       = k.energy;
-  Shooting          &shooting     = k.shooting;
-  Continuation      &continuation = k.continuation;
+  PetscFunctionBeginUser;
+  // A stable verdict holds only for the part of the spectrum that was computed completely.
+  const StabilityResult::Verdict verdict = res.GetVerdict();
+  std::string                    below;
+  if (const PetscInt nb = res.UnstableBelowBand())
+    below = "; " + std::to_string(nb) + " unstable mode(s) below -stab_fmin = " + Num(res.fmin) + " Hz are outside the band";
+  const std::string band = Num(res.fmin) + "-" + (res.fmax > 0 ? Num(res.fmax) : std::string("inf")) + " Hz";
+  if (verdict == StabilityResult::Verdict::Stable && !below.empty())
+    PetscCall(PetscPrintf(comm, "no unstable mode in the band %s (%s)%s (listed as unst<fmin, not reported)\n", band.c_str(),
+                          res.all_eigenvalues ? "all eigenvalues computed" : ("every eigenvalue up to " + Num(res.CompleteUpTo()) + " Hz computed").c_str(),
+                          below.c_str()));
+  else if (verdict == StabilityResult::Verdict::Stable && res.all_eigenvalues)
+    PetscCall(PetscPrintf(comm, "sliding equilibrium is stable (all eigenvalues computed): no self-excited vibration expected\n"));
+  else if (verdict == StabilityResult::Verdict::Stable)
+    PetscCall(PetscPrintf(comm, "sliding equilibrium is stable in the band %s (every eigenvalue up to %.6g Hz computed): no self-excited vibration expected in it\n",
+                          band.c_str(), (double)res.CompleteUpTo()));
+  else if (verdict == StabilityResult::Verdict::Undecided) {
+    const std::string why = "stability undecided: " + std::to_string(res.converged) + " eigenvalue(s) computed, complete up to " +
+                            Num(res.CompleteUpTo()) + " Hz, none unstable there" + below + "; " +
+                            (res.fmax > 0 ? "raise -stab_nev_max to cover -stab_fmax = " + Num(res.fmax) + " Hz, or lower -stab_fmax"
+                                          : "give the band with -stab_fmax");
+    if (!(req.energy || req.shooting || req.continuation)) PetscCall(PetscPrintf(comm, "%s\n", why.c_str()));
+    // Energy, shooting and continuation need an unstable mode: on an undecided verdict they
+    // would report "no vibration" for modes nobody computed.
+    PetscCheck(!(req.energy || req.shooting || req.continuation), comm, PETSC_ERR_NOT_CONVERGED,
+               "%s (the energy estimate and shooting need the band decided)", why.c_str());
+  }
+  for (PetscInt i : res.unstable) {
+    const Mode &m = res.modes[i];
+    PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,
+                          (double)m.Frequency(), (double)m.Period(), (double)m.sigma));
+  }
+  PetscFunctionReturn(0);
+}
+
+// With several unstable modes, only with -energy_all_modes the others are estimated too (one line
+// each; 57 modes of a 200-cell chain took > 300 s); shooting starts from the chosen one
+// (-energy_mode, default the most unstable in the band).
+PetscErrorCode EstimateOtherModes(Pipeline &p)
+{
+  const MPI_Comm         comm = p.Comm();
+  const StabilityResult &res  = p.stability;
+  EnergyAnalysis        &energy = p.energy;
+  PetscFunctionBeginUser;
+  if (res.unstable.size() > 1 && energy.all_modes) {
+    const PetscInt chosen = energy.mode;
+    for (PetscInt i : res.unstable) {
+      if (i == p.estimate.mode) continue;
+      EnergyEstimate other;
+      energy.mode = i;
+      PetscCall(energy.Estimate(p.model, p.eq, res, other));
+      if (other.found)
+        PetscCall(PetscPrintf(comm, "  other unstable mode %" PetscInt_FMT " (f = %.4f Hz): q0 = %.6e, T0 = %.7f s (-energy_mode %" PetscInt_FMT
+                                    " to start from it)\n",
+                              i, (double)(other.omega / (2 * PETSC_PI)), (double)other.q0, (double)other.T0, i));
+      else
+        PetscCall(PetscPrintf(comm, "  other unstable mode %" PetscInt_FMT " (f = %.4f Hz): no balance in the scanned range\n", i,
+                              (double)(other.omega / (2 * PETSC_PI))));
+    }
+    energy.mode = chosen;
+  } else if (res.unstable.size() > 1)
+    PetscCall(PetscPrintf(comm, "  %zu other unstable mode(s) not estimated (-energy_all_modes to estimate each, -energy_mode to choose)\n",
+                          res.unstable.size() - 1));
+  PetscFunctionReturn(0);
+}
+
+// The energy estimate, and from it shooting and the continuation when asked.
+PetscErrorCode RunEnergyAndCycle(Pipeline &p, const Request &req, io::H5Writer &out, const Stages &st)
+{
+  const MPI_Comm comm = p.Comm();
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogStagePush(st.energy));
+  PetscCall(p.EstimateEnergy());
+  PetscCall(PetscLogStagePop());
+  PetscCall(p.energy.View(p.estimate, PETSC_VIEWER_STDOUT_(comm)));
+  PetscCall(p.energy.Write(p.estimate, out));
+  PetscCall(Checkpoint(comm, out, "the energy estimate"));
+  PetscCall(EstimateOtherModes(p));
+  const std::string at = "mu = " + Num(p.model.contacts.Mu()) + ", V = " + Num(p.model.contacts.V()) + " m/s";
+  // No unstable mode in the band: no cycle to shoot for, and no branch to start from.
+  if (req.shooting && p.estimate.mode < 0)
+    PetscCall(PetscPrintf(comm, "shooting skipped: no unstable mode in the band at %s, so no limit cycle to compute\n", at.c_str()));
+  PetscCheck(!(req.continuation && p.estimate.mode < 0), comm, kErrInput,
+             "continuation: no limit cycle to start from: the sliding equilibrium has no unstable mode in the band at %s; start the scene "
+             "at a mu (or V) where it is unstable (the sweep, -analyses sweep, gives the critical mu)",
+             at.c_str());
+  if (!req.shooting || p.estimate.mode < 0) PetscFunctionReturn(0);
+  PetscCall(PetscLogStagePush(st.shooting));
+  if (p.shooting.period > 0)
+    PetscCall(PetscPrintf(comm, "shooting: start period %s s (-shoot_period) instead of the linear %s s\n", Num(p.shooting.period).c_str(),
+                          Num(p.estimate.T0).c_str()));
+  PetscErrorCode serr = p.Shoot();
+  PetscCall(PetscLogStagePop());
+  if (p.estimate.found) PetscCall(p.shooting.Write(p.cycle, out)); // also the best iterate of a failed run
+  PetscCall(serr);
+  PetscCall(p.shooting.View(p.cycle, PETSC_VIEWER_STDOUT_(comm)));
+  PetscCall(Checkpoint(comm, out, "shooting"));
+  if (!req.continuation) PetscFunctionReturn(0);
+  ContinuationResult cres;
+  PetscErrorCode     cerr = p.Continue(cres);
+  PetscCall(p.continuation.Write(cres, out)); // the branch computed so far, also after an error
+  PetscCall(cerr);
+  PetscCall(p.continuation.View(cres, PETSC_VIEWER_STDOUT_(comm)));
+  PetscCall(Checkpoint(comm, out, cres.interrupted ? "the continuation points so far" : "the continuation"));
+  PetscFunctionReturn(0);
+}
+
+// The analyses the request names, in order, each written and flushed to `output` before the next.
+PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, const Stages &st)
+{
+  const MPI_Comm comm = p.Comm();
   PetscFunctionBeginUser;
   io::H5Writer out;
   PetscCall(out.Open(comm, output));
   out.KeepOnError("failed: the run stopped with an error; the groups written before it are complete");
-  PetscCall(WriteModelInfo(model, out));
-
-  SlidingEquilibrium eq;
-  StabilityResult    res;
+  PetscCall(WriteModelInfo(p.model, out));
   if (req.stability) {
     PetscCall(PetscLogStagePush(st.eq));
-    PetscCall(eqs.Solve(model, eq));
+    PetscCall(p.SolveEquilibrium());
     PetscCall(PetscLogStagePop());
-    PetscCall(eqs.View(model, eq, PETSC_VIEWER_STDOUT_(comm)));
-    PetscCall(eqs.ViewFromOptions(model, eq));
-    PetscCall(WriteEquilibrium(model, eq, out));
+    PetscCall(p.eqs.View(p.model, p.eq, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(p.eqs.ViewFromOptions(p.model, p.eq));
+    PetscCall(WriteEquilibrium(p.model, p.eq, out));
 
     PetscCall(PetscLogStagePush(st.stab));
-    PetscCall(stab.Solve(model, eq, res));
+    PetscCall(p.SolveStability());
     PetscCall(PetscLogStagePop());
-    PetscCall(stab.View(res, PETSC_VIEWER_STDOUT_(comm)));
-    PetscCall(stab.ViewFromOptions(res));
-    PetscCall(WriteStability(res, out));
+    PetscCall(p.stab.View(p.stability, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(p.stab.ViewFromOptions(p.stability));
+    PetscCall(WriteStability(p.stability, out));
     PetscCall(Checkpoint(comm, out, "the stability analysis"));
-    // A stable verdict holds only for the part of the spectrum that was computed completely.
-    const StabilityResult::Verdict verdict = res.GetVerdict();
-    std::string                    below;
-    if (const PetscInt nb = res.UnstableBelowBand())
-      below = "; " + std::to_string(nb) + " unstable mode(s) below -stab_fmin = " + Num(res.fmin) + " Hz are outside the band";
-    const std::string band = Num(res.fmin) + "-" + (res.fmax > 0 ? Num(res.fmax) : std::string("inf")) + " Hz";
-    if (verdict == StabilityResult::Verdict::Stable && !below.empty())
-      PetscCall(PetscPrintf(comm, "no unstable mode in the band %s (%s)%s (listed as unst<fmin, not reported)\n", band.c_str(),
-                            res.all_eigenvalues ? "all eigenvalues computed" : ("every eigenvalue up to " + Num(res.CompleteUpTo()) + " Hz computed").c_str(),
-                            below.c_str()));
-    else if (verdict == StabilityResult::Verdict::Stable && res.all_eigenvalues)
-      PetscCall(PetscPrintf(comm, "sliding equilibrium is stable (all eigenvalues computed): no self-excited vibration expected\n"));
-    else if (verdict == StabilityResult::Verdict::Stable)
-      PetscCall(PetscPrintf(comm, "sliding equilibrium is stable in the band %s (every eigenvalue up to %.6g Hz computed): no self-excited vibration expected in it\n",
-                            band.c_str(), (double)res.CompleteUpTo()));
-    else if (verdict == StabilityResult::Verdict::Undecided) {
-      const std::string why = "stability undecided: " + std::to_string(res.converged) + " eigenvalue(s) computed, complete up to " +
-                              Num(res.CompleteUpTo()) + " Hz, none unstable there" + below + "; " +
-                              (res.fmax > 0 ? "raise -stab_nev_max to cover -stab_fmax = " + Num(res.fmax) + " Hz, or lower -stab_fmax"
-                                            : "give the band with -stab_fmax");
-      if (!(req.energy || req.shooting || req.continuation)) PetscCall(PetscPrintf(comm, "%s\n", why.c_str()));
-      // Energy, shooting and continuation need an unstable mode: on an undecided verdict they
-      // would report "no vibration" for modes nobody computed.
-      PetscCheck(!(req.energy || req.shooting || req.continuation), comm, PETSC_ERR_NOT_CONVERGED,
-                 "%s (the energy estimate and shooting need the band decided)", why.c_str());
-    }
-    for (PetscInt i : res.unstable) {
-      const Mode &m = res.modes[i];
-      PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,
-                            (double)m.Frequency(), (double)m.Period(), (double)m.sigma));
-    }
+    PetscCall(ReportStability(comm, p.stability, req));
   }
   if (req.sweep) {
     SweepResult sr;
     PetscCall(PetscLogStagePush(st.sweep));
-    PetscCall(sweep.Solve(sr));
+    PetscCall(p.Sweep(sr));
     PetscCall(PetscLogStagePop());
-    PetscCall(sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
-    PetscCall(sweep.Write(sr, out));
+    PetscCall(p.sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(p.sweep.Write(sr, out));
     PetscCall(Checkpoint(comm, out, "the sweep"));
   }
-  if (req.energy) {
-    EnergyEstimate est;
-    PetscCall(PetscLogStagePush(st.energy));
-    PetscCall(energy.Estimate(model, eq, res, est));
-    PetscCall(PetscLogStagePop());
-    PetscCall(energy.View(est, PETSC_VIEWER_STDOUT_(comm)));
-    PetscCall(energy.Write(est, out));
-    PetscCall(Checkpoint(comm, out, "the energy estimate"));
-    // Several unstable modes: only with -energy_all_modes estimate the others too (one line each;
-    // 57 modes of a 200-cell chain took > 300 s); shooting starts from the chosen one
-    // (-energy_mode, default the most unstable in the band).
-    if (res.unstable.size() > 1 && energy.all_modes) {
-      const PetscInt chosen = energy.mode;
-      for (PetscInt i : res.unstable) {
-        if (i == est.mode) continue;
-        EnergyEstimate other;
-        energy.mode = i;
-        PetscCall(energy.Estimate(model, eq, res, other));
-        if (other.found)
-          PetscCall(PetscPrintf(comm, "  other unstable mode %" PetscInt_FMT " (f = %.4f Hz): q0 = %.6e, T0 = %.7f s (-energy_mode %" PetscInt_FMT
-                                      " to start from it)\n",
-                                i, (double)(other.omega / (2 * PETSC_PI)), (double)other.q0, (double)other.T0, i));
-        else
-          PetscCall(PetscPrintf(comm, "  other unstable mode %" PetscInt_FMT " (f = %.4f Hz): no balance in the scanned range\n", i,
-                                (double)(other.omega / (2 * PETSC_PI))));
-      }
-      energy.mode = chosen;
-    } else if (res.unstable.size() > 1)
-      PetscCall(PetscPrintf(comm, "  %zu other unstable mode(s) not estimated (-energy_all_modes to estimate each, -energy_mode to choose)\n",
-                            res.unstable.size() - 1));
-    // No unstable mode in the band: no cycle to shoot for, and no branch to start from.
-    if (req.shooting && est.mode < 0)
-      PetscCall(PetscPrintf(comm, "shooting skipped: no unstable mode in the band at mu = %s, V = %s m/s, so no limit cycle to compute\n",
-                            Num(model.contacts.mu).c_str(), Num(model.contacts.V).c_str()));
-    PetscCheck(!(req.continuation && est.mode < 0), comm, kErrInput,
-               "continuation: no limit cycle to start from: the sliding equilibrium has no unstable mode in the band at mu = %s, "
-               "V = %s m/s; start the scene at a mu (or V) where it is unstable (the sweep, -analyses sweep, gives the critical mu)",
-               Num(model.contacts.mu).c_str(), Num(model.contacts.V).c_str());
-    if (req.shooting && est.mode >= 0) {
-      PetscCheck(est.found, comm, PETSC_ERR_NOT_CONVERGED,
-                 "shooting: the energy estimate found no amplitude where damping and reaction powers balance up to %g q_sep; no initial guess (raise -energy_q_max_factor or -energy_extend)",
-                 (double)est.q_max_factor);
-      // Z0 = U_e + s (U0 - U_e), s dU0: the estimate's orbit scaled by -shoot_q_scale.
-      VecH U0, dU0;
-      PetscCall(VecDuplicate(est.U0, U0.out()));
-      PetscCall(VecDuplicate(est.dU0, dU0.out()));
-      PetscCall(VecWAXPY(U0, -1.0, eq.U, est.U0));
-      PetscCall(VecAYPX(U0, shooting.q_scale, eq.U));
-      PetscCall(VecCopy(est.dU0, dU0));
-      PetscCall(VecScale(dU0, shooting.q_scale));
-      ShootingResult sres;
-      PetscCall(PetscLogStagePush(st.shooting));
-      if (shooting.period > 0)
-        PetscCall(PetscPrintf(comm, "shooting: start period %s s (-shoot_period) instead of the linear %s s\n", Num(shooting.period).c_str(),
-                              Num(est.T0).c_str()));
-      PetscErrorCode serr = shooting.Solve(model, eq, theta, U0, dU0, shooting.period > 0 ? shooting.period : est.T0, sres);
-      PetscCall(PetscLogStagePop());
-      PetscCall(shooting.Write(sres, out)); // also the best iterate of a failed run
-      PetscCall(serr);
-      PetscCall(shooting.View(sres, PETSC_VIEWER_STDOUT_(comm)));
-      PetscCall(Checkpoint(comm, out, "shooting"));
-      if (req.continuation) {
-        ContinuationResult cres;
-        PetscErrorCode     cerr = continuation.Run(model, eqs, stab, theta, shooting, sres, cres);
-        PetscCall(continuation.Write(cres, out)); // the branch computed so far, also after an error
-        PetscCall(cerr);
-        PetscCall(continuation.View(cres, PETSC_VIEWER_STDOUT_(comm)));
-        PetscCall(Checkpoint(comm, out, cres.interrupted ? "the continuation points so far" : "the continuation"));
-      }
-    }
-  }
+  if (req.energy) PetscCall(RunEnergyAndCycle(p, req, out, st));
   if (req.transient) {
     TransientResult tr;
     PetscCall(PetscLogStagePush(st.transient));
-    PetscErrorCode terr = transient.Run(model, eq, res, theta, tr);
+    PetscErrorCode terr = p.RunTransient(tr);
     PetscCall(PetscLogStagePop());
     // Whatever was recorded is written, also when the run stopped early.
-    PetscCall(transient.Write(tr, out));
+    PetscCall(p.transient.Write(tr, out));
     PetscCall(terr);
-    PetscCall(theta.View(PETSC_VIEWER_STDOUT_(comm)));
-    PetscCall(transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(p.theta.View(PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(p.transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(Checkpoint(comm, out, tr.complete ? "the transient" : "the transient step in hand (the steps so far are written)"));
   }
   PetscCall(out.SetStatus("complete"));
@@ -376,7 +325,7 @@ PetscErrorCode RunApp(int argc, char **argv)
     names[0] = nullptr;
     PetscCall(PetscStrallocpy("stability", &names[0]));
   }
-  PetscErrorCode perr = ParseAnalyses(names, nnames, req);
+  PetscErrorCode perr = Request::Parse(comm, names, nnames, req);
   for (PetscInt i = 0; i < nnames; ++i) PetscCall(PetscFree(names[i]));
   PetscCall(perr);
 
@@ -384,19 +333,17 @@ PetscErrorCode RunApp(int argc, char **argv)
   // first without building anything (a CalculiX import and its reduction take minutes), then for
   // real, with the PETSc objects' own options.
   if (!help) {
-    Model dry(comm);
-    dry.contacts.V = 1; // the sweep's default speed range; values read here are thrown away
-    PetscCall(ModelCreateFromOptions(comm, dry, nullptr, nullptr, true));
-    Components k_dry(comm);
-    PetscCall(k_dry.SetFromOptions(dry, req));
+    Pipeline dry(comm);
+    PetscCall(dry.CheckOptions(req));
     PetscCall(CheckUnknownSquealOptions(comm));
   }
-  Model       model(comm);
+  Pipeline    pl(comm);
+  Model      &model = pl.model;
   std::string export_dir;
   bool        reduced = false;
-  PetscCall(ModelCreateFromOptions(comm, model, &export_dir, &reduced));
-  Components k(comm);
-  PetscCall(k.SetFromOptions(model, req));
+  PetscCall(pl.BuildModel(&export_dir));
+  PetscCall(pl.Reduce(&reduced));
+  PetscCall(pl.SetFromOptions(req));
   if (help) PetscFunctionReturn(0);
   PetscCall(CheckUnusedOptions(comm, true));
 
@@ -414,21 +361,20 @@ PetscErrorCode RunApp(int argc, char **argv)
   // after it the model goes to rank 0 and the analyses run there; the other ranks wait. The sweep
   // and the continuation spread their points over the ranks themselves, so they keep every rank.
   if (size > 1 && gather && reduced && !req.sweep && !req.continuation) {
-    Model model0(PETSC_COMM_SELF);
-    PetscCall(ModelGatherToRankZero(model, model0));
+    Pipeline p0(PETSC_COMM_SELF);
+    PetscCall(ModelGatherToRankZero(model, p0.model));
     PetscCall(PetscPrintf(comm, "the reduced model (%" PetscInt_FMT " DOFs, dense) is analysed on rank 0 alone: split over %d ranks it costs more "
                                 "than it saves (-reduce_gather 0 splits it)\n",
                           model.Size(), size));
     PetscErrorCode err = 0;
     if (rank == 0) {
-      Components k0(PETSC_COMM_SELF);
-      err = k0.SetFromOptions(model0, req);
-      if (!err) err = RunAnalyses(PETSC_COMM_SELF, model0, k0, req, output, st);
+      err = p0.SetFromOptions(req);
+      if (!err) err = RunAnalyses(p0, req, output, st);
     }
     // Rank 0 has printed the error; the others only share the exit status.
     PetscCallMPI(MPI_Bcast(&err, 1, MPI_INT, 0, comm));
     if (err) PetscFunctionReturn(err);
-  } else PetscCall(RunAnalyses(comm, model, k, req, output, st));
+  } else PetscCall(RunAnalyses(pl, req, output, st));
   PetscCall(CheckUnusedOptions(comm, false));
   PetscFunctionReturn(0);
 }

@@ -22,8 +22,8 @@ PetscErrorCode ContactSet::Validate(MPI_Comm comm, PetscInt N)
 {
   std::map<PetscInt, PetscInt> owner; // DOF -> point using it
   PetscFunctionBeginUser;
-  PetscCheck(!PetscIsInfOrNanReal(mu) && mu >= 0, comm, kErrInput, "friction coefficient mu = %g: expected >= 0", (double)mu);
-  PetscCheck(!PetscIsInfOrNanReal(V) && V > 0, comm, kErrInput, "sliding speed V = %g: expected > 0", (double)V);
+  PetscCheck(!PetscIsInfOrNanReal(mu_) && mu_ >= 0, comm, kErrInput, "friction coefficient mu = %g: expected >= 0", (double)mu_);
+  PetscCheck(!PetscIsInfOrNanReal(V_) && V_ > 0, comm, kErrInput, "sliding speed V = %g: expected > 0", (double)V_);
   for (PetscInt c = 0; c < Size(); ++c) {
     ContactPoint &p = points[c];
     PetscCheck(!p.nodes.empty() || !p.cols[kN].empty(), comm, kErrInput, "contact %" PetscInt_FMT " has no node and no normal column", c);
@@ -201,7 +201,7 @@ PetscErrorCode ContactSet::View(PetscViewer viewer) const
   PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
   if (!ascii) PetscFunctionReturn(0);
   PetscCall(PetscViewerASCIIPrintf(viewer, "contact set: %" PetscInt_FMT " point(s), %s friction, mu = %g, V = %g m/s\n",
-                                   Size(), FrictionLawName(law), (double)mu, (double)V));
+                                   Size(), FrictionLawName(law), (double)mu_, (double)V_));
   PetscCall(PetscViewerASCIIPushTab(viewer));
   const PetscInt shown = PetscMin(Size(), 8);
   for (PetscInt c = 0; c < shown; ++c) {

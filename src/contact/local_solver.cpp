@@ -26,6 +26,7 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
     rho_t_[c] = rho_scale / (h * W(3 * c + kT, 3 * c + kT));
     speed_[c] = cs.Speed(c);
   }
+  friction_state_ = cs.FrictionState();
 }
 
 void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<PetscReal> &W, PetscReal h, PetscReal rho_scale)
@@ -48,13 +49,15 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
     rho_t_[c] = rho_scale / (h * W.coeff(3 * c + kT, 3 * c + kT));
     speed_[c] = cs.Speed(c);
   }
+  friction_state_ = cs.FrictionState();
 }
 
 LocalSolveInfo LocalContactSolver::Solve(const Eigen::VectorXd &w_f, const Eigen::VectorXd &gap0, Eigen::VectorXd &r)
 {
   if (sparse_) {
+    RefreshFriction();
     if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r);
-    p_.mu          = cs_->mu;
+    p_.mu          = cs_->Mu();
     p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
     return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
   }
@@ -96,7 +99,7 @@ void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it)
 
 LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
 {
-  p_.mu          = cs_->mu;
+  p_.mu          = cs_->Mu();
   p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
   if (sparse_) return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
   // The storage types of SolveSized<Eigen::Dynamic>, so that a fallback repeats the fixed point's
@@ -114,7 +117,7 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
 PetscReal LocalContactSolver::Residual(CRef gap0, CRef r, CRef v, Eigen::VectorXd &F, bool jac)
 {
   const Eigen::Index nc   = rho_n_.size();
-  const PetscReal    mu   = cs_->mu, h = p_.h;
+  const PetscReal    mu   = cs_->Mu(), h = p_.h;
   const bool         rect = cs_->law == FrictionLaw::Rectilinear;
   for (Eigen::Index c = 0; c < nc; ++c) {
     const Eigen::Index o  = 3 * c;
@@ -212,7 +215,7 @@ bool LocalContactSolver::Direction()
 LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
 {
   const Eigen::Index nc = rho_n_.size();
-  p_.mu                 = cs_->mu;
+  p_.mu                 = cs_->Mu();
   ++newton_solves_;
   r0_ = r;
   if (sparse_) v_.noalias() = hWs_ * r;
@@ -291,7 +294,7 @@ void LocalContactSolver::Status(const Eigen::VectorXd &r, std::vector<int> &stat
     }
     // Stick: strictly inside the friction disc (docs/method.md §5, "Cost and status").
     const PetscReal rT = cs_->law == FrictionLaw::Rectilinear ? std::abs(r[o + kT]) : std::hypot(r[o + kT], r[o + kB]);
-    status[c] = rT < (1 - 1e-9) * cs_->mu * rn ? kStick : kSlip;
+    status[c] = rT < (1 - 1e-9) * cs_->Mu() * rn ? kStick : kSlip;
   }
 }
 

@@ -4,19 +4,12 @@
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
-#include "squeal/energy/energy.h"
-#include "squeal/model/builders.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 namespace squeal {
-
-namespace {
-bool Separates(const ContinuationPoint &p) { return p.frac_separated > 0; }
-bool Sticks(const ContinuationPoint &p) { return p.frac_stuck > 0; }
-} // namespace
 
 PetscReal ContinuationPoint::LargestNonTrivial() const
 {
@@ -119,23 +112,13 @@ PetscErrorCode Continuation::SetFromOptions()
 PetscErrorCode Continuation::SetParam(Model &model, PetscReal v) const
 {
   PetscFunctionBeginUser;
-  if (param == "mu") model.contacts.mu = v;
-  else model.contacts.V = v;
+  const ContactSet &cs = model.contacts;
+  // The integrator's contact solver follows a new V by itself (ContactSet::FrictionState).
+  model.contacts.SetFriction(param == "mu" ? v : cs.Mu(), param == "mu" ? cs.V() : v);
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Continuation::SetParamAt(PetscReal v, PetscReal T)
-{
-  PetscFunctionBeginUser;
-  PetscCall(SetParam(*model_, v));
-  // The contact solver copies the sliding speeds V_c at set-up, and Shooting sets the integrator up
-  // only when the period changes: a new V at the same T would flow with the old speeds (dH/dV = 0,
-  // the bordered system singular). Set up at h = T / N_s, the step the next flow at T uses.
-  if (param == "v") PetscCall(ti_->SetUp(*model_, T / shoot_->steps));
-  PetscFunctionReturn(0);
-}
-
-PetscReal Continuation::GetParam(const Model &model) const { return param == "mu" ? model.contacts.mu : model.contacts.V; }
+PetscReal Continuation::GetParam(const Model &model) const { return param == "mu" ? model.contacts.Mu() : model.contacts.V(); }
 
 PetscErrorCode Continuation::Create(State &s) const
 {
@@ -274,7 +257,7 @@ PetscErrorCode Continuation::Corrector(const State &last, const State &pred, con
   // re-anchoring at every iterate (as Shooting::Solve does) lets the phase drift along the orbit
   // from point to point, and on small cycles that drift is as large as the amplitude change, so
   // the secant loses the branch (seen near mu_c on case 1: the branch retraced itself).
-  PetscCall(SetParamAt(last.lambda, last.T));
+  PetscCall(SetParam(*model_, last.lambda));
   PetscCall(shoot_->Pack(last.U, last.dU, last.T, x_));
   PetscCall(shoot_->SetAnchor(x_));
   ++flows_;
@@ -291,7 +274,7 @@ PetscErrorCode Continuation::Corrector(const State &last, const State &pred, con
       why = "the corrector left the physical domain (T = " + std::to_string(y.T) + " s, " + param + " = " + std::to_string(y.lambda) + ")";
       PetscFunctionReturn(0);
     }
-    PetscCall(SetParamAt(y.lambda, y.T));
+    PetscCall(SetParam(*model_, y.lambda));
     PetscCall(shoot_->Pack(y.U, y.dU, y.T, x_));
     PetscCall(shoot_->Residual(x_, f_));
     ++flows_;
@@ -311,9 +294,9 @@ PetscErrorCode Continuation::Corrector(const State &last, const State &pred, con
     }
     // dH/dlambda at fixed (Z0, T); the phase row does not depend on lambda.
     const PetscReal el = shoot_->fd_step * std::max(std::abs(y.lambda), sl_);
-    PetscCall(SetParamAt(y.lambda + el, y.T));
+    PetscCall(SetParam(*model_, y.lambda + el));
     PetscCall(shoot_->Residual(x_, fl_));
-    PetscCall(SetParamAt(y.lambda, y.T));
+    PetscCall(SetParam(*model_, y.lambda));
     ++flows_;
     PetscCall(VecAXPY(fl_, -1.0, f_));
     PetscCall(VecScale(fl_, 1.0 / el));
@@ -643,297 +626,6 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   res.flow_evaluations = flows_;
   PetscCall(PetscTime(&t1));
   res.seconds = t1 - t0;
-  PetscFunctionReturn(0);
-}
-
-namespace {
-const char *const kEventTypes[] = {"lift-off", "separation-ends", "stick", "stick-ends", "fold", "period-doubling", "neimark-sacker",
-                                   "cyclic-fold", "monodromy-jump", "hopf", "coexistence"};
-constexpr int     kNEventTypes  = sizeof(kEventTypes) / sizeof(kEventTypes[0]);
-
-void PackPoint(const ContinuationPoint &p, std::vector<PetscReal> &b)
-{
-  b.insert(b.end(), {p.param, p.period, p.amplitude, p.frac_separated, p.frac_stuck, (PetscReal)p.trivial, (PetscReal)p.stable_cycle,
-                     (PetscReal)p.equilibrium_unstable, p.max_growth, (PetscReal)p.newton_iterations, (PetscReal)p.flow_evaluations, p.ds,
-                     p.seconds, (PetscReal)p.leg, (PetscReal)p.slice, (PetscReal)p.peak_to_peak.size(), (PetscReal)p.floquet.size()});
-  b.insert(b.end(), p.peak_to_peak.begin(), p.peak_to_peak.end());
-  for (auto &z : p.floquet) b.insert(b.end(), {z.real(), z.imag()});
-}
-
-size_t UnpackPoint(const PetscReal *b, ContinuationPoint &p)
-{
-  size_t k = 0;
-  p.param = b[k++], p.period = b[k++], p.amplitude = b[k++], p.frac_separated = b[k++], p.frac_stuck = b[k++];
-  p.trivial = (PetscInt)b[k++], p.stable_cycle = b[k++] != 0, p.equilibrium_unstable = (PetscInt)b[k++], p.max_growth = b[k++];
-  p.newton_iterations = (PetscInt)b[k++], p.flow_evaluations = (PetscInt)b[k++], p.ds = b[k++], p.seconds = b[k++];
-  p.leg = (PetscInt)b[k++], p.slice = (PetscInt)b[k++];
-  const size_t npp = (size_t)b[k++], nfl = (size_t)b[k++];
-  p.peak_to_peak.assign(b + k, b + k + npp), k += npp;
-  p.floquet.clear();
-  for (size_t j = 0; j < nfl; ++j, k += 2) p.floquet.emplace_back(b[k], b[k + 1]);
-  return k;
-}
-} // namespace
-
-PetscErrorCode Continuation::RunSlices(ContinuationResult &res)
-{
-  PetscMPIInt rank, size, srank;
-  MPI_Comm    sub;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
-  PetscCallMPI(MPI_Comm_size(comm_, &size));
-  const PetscInt groups = std::min<PetscInt>(slices, size), group = (PetscInt)rank * groups / size;
-  PetscCallMPI(MPI_Comm_split(comm_, (int)group, rank, &sub));
-  PetscCallMPI(MPI_Comm_rank(sub, &srank));
-  // Numbers only cross ranks: every point, and the located events as (type, param, lo, hi).
-  std::vector<PetscReal> buf;
-  PetscInt               halv = 0, flows = 0, stopped = 0;
-  std::string            ends;
-  for (PetscInt s = group; s < slices; s += groups) {
-    const PetscReal a = lmin + (lmax - lmin) * s / slices, b = s + 1 == slices ? lmax : lmin + (lmax - lmin) * (s + 1) / slices;
-    Model              m(sub);
-    SlidingEquilibrium eq;
-    StabilityResult    st;
-    EnergyEstimate     est;
-    EquilibriumSolver  eqs(sub);
-    StabilitySolver    stab(sub);
-    EnergyAnalysis     ea(sub);
-    ThetaIntegrator    ti(sub);
-    Shooting           sh(sub);
-    ShootingResult     sr;
-    sh.interruptible = false; // this slice polls between its points (Run)
-    PetscCall(ModelCreateFromOptions(sub, m));
-    PetscCall(SetParam(m, b));
-    PetscCall(eqs.SetFromOptions());
-    PetscCall(stab.SetFromOptions());
-    PetscCall(ea.SetFromOptions());
-    PetscCall(ti.SetFromOptions());
-    PetscCall(sh.SetFromOptions());
-    PetscCall(eqs.Solve(m, eq));
-    PetscCall(stab.Solve(m, eq, st));
-    PetscCall(ea.Estimate(m, eq, st, est));
-    PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
-    PetscErrorCode err = sh.Solve(m, eq, ti, est.U0, est.dU0, est.T0, sr);
-    PetscCall(PetscPopErrorHandler());
-    PetscCheck(!err && sr.converged, sub, PETSC_ERR_NOT_CONVERGED,
-               "continuation slice %" PetscInt_FMT ": shooting from the energy estimate at %s = %g did not converge (%s); change -cont_slices",
-               s, param.c_str(), (double)b, sr.reason.c_str());
-    Continuation c(sub);
-    PetscCall(c.SetFromOptions()); // the corrector's KSP (-cont_ksp_*); the settings are this object's
-    c.param = param, c.lmin = a, c.lmax = b, c.ds = ds, c.ds_min = ds_min, c.ds_max = ds_max, c.locate_tol = locate_tol;
-    c.jump_tol = jump_tol, c.min_amplitude = min_amplitude, c.max_steps = max_steps, c.max_it = max_it, c.monitor = monitor;
-    c.equilibrium = equilibrium, c.both = PETSC_TRUE, c.down_only_ = true, c.slices = 1;
-    ContinuationResult r;
-    PetscCall(c.Run(m, eqs, stab, ti, sh, sr, r));
-    if (srank == 0) {
-      for (auto &p : r.points) {
-        ContinuationPoint q = p;
-        q.slice             = s;
-        buf.push_back(1);
-        PackPoint(q, buf);
-      }
-      for (auto &e : r.events) {
-        const int t = (int)(std::find_if(kEventTypes, kEventTypes + kNEventTypes, [&](const char *x) { return e.type == x; }) - kEventTypes);
-        if (t < kNEventTypes) buf.insert(buf.end(), {2, (PetscReal)t, e.param, e.lo, e.hi});
-      }
-      halv += r.halvings, flows += r.flow_evaluations, stopped |= r.interrupted;
-      char line[64];
-      std::snprintf(line, sizeof line, "slice %" PetscInt_FMT " [%g, %g]: ", s, (double)a, (double)b);
-      for (auto &e : r.leg_end) ends += "; " + std::string(line) + e;
-    }
-    PetscCall(PetscPrintf(sub, "cont: slice %" PetscInt_FMT " [%g, %g] (rank group %" PetscInt_FMT "): %zu point(s)\n", s, (double)a, (double)b,
-                          group, r.points.size()));
-    PetscCall(InterruptRequested(sub, &interrupted_));
-    if (interrupted_) break;
-  }
-  // Leg-end texts travel as characters after the numbers.
-  for (char ch : ends) buf.insert(buf.end(), {3, (PetscReal)(unsigned char)ch});
-  int n = (int)buf.size();
-  std::vector<int> counts(size), displs(size, 0);
-  PetscCallMPI(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_));
-  for (int r = 1; r < size; ++r) displs[r] = displs[r - 1] + counts[r - 1];
-  std::vector<PetscReal> all(displs[size - 1] + counts[size - 1]);
-  PetscCallMPI(MPI_Allgatherv(buf.data(), n, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm_));
-  PetscInt tot[3] = {halv, flows, stopped};
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, tot, 3, MPIU_INT, MPI_SUM, comm_));
-  std::vector<ContinuationEvent> located;
-  std::vector<std::string>       legs;
-  std::string                    cur;
-  for (size_t k = 0; k < all.size();) {
-    const int tag = (int)all[k++];
-    if (tag == 1) {
-      ContinuationPoint p;
-      k += UnpackPoint(&all[k], p);
-      res.points.push_back(p);
-    } else if (tag == 2) {
-      located.push_back({kEventTypes[(int)all[k]], 0, all[k + 1], all[k + 2], all[k + 3], ""});
-      k += 4;
-    } else {
-      cur += (char)(int)all[k++];
-    }
-  }
-  res.leg_end.push_back(cur.size() > 2 ? cur.substr(2) : cur);
-  // One branch ordered in the parameter; a slice's lower end and the next slice's start are two
-  // shooting solutions at the same parameter: the upper slice's one is kept.
-  std::stable_sort(res.points.begin(), res.points.end(), [](const ContinuationPoint &x, const ContinuationPoint &y) {
-    return x.param < y.param || (x.param == y.param && x.slice > y.slice);
-  });
-  res.points.erase(std::unique(res.points.begin(), res.points.end(),
-                               [](const ContinuationPoint &x, const ContinuationPoint &y) { return x.param == y.param; }),
-                   res.points.end());
-  // Events between neighbours of the merged branch, the slices' located ones put in their place.
-  const PetscReal tol = locate_tol;
-  locate_tol          = 0;
-  states_.clear();
-  PetscCall(Detect(res));
-  locate_tol = tol;
-  for (auto &e : res.events)
-    for (auto &l : located)
-      if (l.type == e.type && l.lo >= e.lo - 1e-12 && l.hi <= e.hi + 1e-12) e.param = l.param, e.lo = l.lo, e.hi = l.hi;
-  res.param_name       = param;
-  res.range_lo         = lmin;
-  res.range_hi         = lmax;
-  res.halvings         = tot[0];
-  res.flow_evaluations = tot[1];
-  res.interrupted      = tot[2] > 0;
-  interrupted_         = res.interrupted;
-  PetscCallMPI(MPI_Comm_free(&sub));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &ev)
-{
-  const size_t i = (size_t)ev.point;
-  PetscFunctionBeginUser;
-  if (!(locate_tol > 0) || interrupted_) PetscFunctionReturn(0);
-  const bool sep = ev.type == "lift-off" || ev.type == "separation-ends";
-  auto       flag = [&](const ContinuationPoint &p) { return sep ? Separates(p) : Sticks(p); };
-  const bool flo  = flag(res.points[i - 1]);
-  PetscReal  lo = res.points[i - 1].param, hi = res.points[i].param;
-  State      g, t, y, sol, slo, shi; // slo, shi: the solutions at the bracket ends
-  PetscCall(Copy(states_[i - 1], g));
-  PetscCall(Copy(states_[i - 1], t));
-  PetscCall(Copy(states_[i - 1], slo));
-  PetscCall(Copy(states_[i], shi));
-  PetscCall(Create(y));
-  PetscCall(VecZeroEntries(t.U));
-  PetscCall(VecZeroEntries(t.dU));
-  t.T = 0, t.lambda = sl_; // unit pure-parameter tangent: the corrector at fixed lambda
-  for (int it = 0; it < 40 && std::abs(hi - lo) > locate_tol; ++it) {
-    const PetscReal   mid = 0.5 * (lo + hi);
-    ContinuationPoint pt;
-    bool              ok;
-    std::string       why;
-    PetscCall(InterruptRequested(comm_, &interrupted_));
-    if (interrupted_) break;
-    // Shooting at the fixed parameter from the solution at the lower bracket end (exact tangents:
-    // a few corrections, the parameter moving by half the bracket). Where it fails, the bordered
-    // corrector from the straight line between the two bracket solutions.
-    PetscCall(Copy(slo, g));
-    g.lambda = mid;
-    PetscCall(Polish(g, pt, &sol, &ok, why));
-    if (!ok) {
-      why = "shooting from the lower end: " + why;
-      std::string why2;
-      PetscInt    its;
-      PetscCall(Copy(slo, g));
-      PetscCall(Axpby(g, 0.5, shi, 0.5));
-      g.lambda = mid;
-      PetscCall(Corrector(slo, g, t, y, &its, why2));
-      if (interrupted_) {
-        ev.detail += "; bisection stopped: " + why2;
-        break;
-      }
-      ok = why2.empty();
-      if (ok) PetscCall(Polish(y, pt, &sol, &ok, why2));
-      if (!ok) why += "; corrector: " + why2;
-    }
-    if (!ok) {
-      ev.detail += "; bisection stopped: " + why;
-      break;
-    }
-    sol.lambda = mid;
-    if (flag(pt) == flo) {
-      lo = mid;
-      PetscCall(Copy(sol, slo));
-    } else {
-      hi = mid;
-      PetscCall(Copy(sol, shi));
-    }
-  }
-  ev.lo = std::min(lo, hi), ev.hi = std::max(lo, hi), ev.param = 0.5 * (lo + hi);
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Continuation::Detect(ContinuationResult &res)
-{
-  auto &P = res.points;
-  PetscFunctionBeginUser;
-  res.events.clear();
-  auto add = [&](const char *type, size_t i, PetscReal at, const std::string &detail) {
-    res.events.push_back({type, (PetscInt)i, at, std::min(P[i - 1].param, P[i].param), std::max(P[i - 1].param, P[i].param), detail});
-  };
-  for (size_t i = 1; i < P.size(); ++i) {
-    const auto &p = P[i - 1], &q = P[i];
-    // Along the branch order (from the -cont_min end): appearing or vanishing separation / stick.
-    if (Separates(p) != Separates(q)) add(Separates(q) ? "lift-off" : "separation-ends", i, 0.5 * (p.param + q.param), "");
-    if (Sticks(p) != Sticks(q)) add(Sticks(q) ? "stick" : "stick-ends", i, 0.5 * (p.param + q.param), "");
-    if (p.stable_cycle != q.stable_cycle) {
-      const auto &u = p.stable_cycle ? q : p; // the unstable side names the crossing multiplier
-      std::complex<PetscReal> m = 0;
-      for (size_t k = 0; k < u.floquet.size(); ++k)
-        if ((PetscInt)k != u.trivial && std::abs(u.floquet[k]) > std::abs(m)) m = u.floquet[k];
-      const char *type = std::abs(m.imag()) > 1e-6 * std::abs(m) ? "neimark-sacker" : (m.real() < 0 ? "period-doubling" : "cyclic-fold");
-      const PetscReal a = p.LargestNonTrivial() - 1, b = q.LargestNonTrivial() - 1;
-      char            d[160];
-      std::snprintf(d, sizeof d, "multiplier %.4f%+.4fi on the unstable side", m.real(), m.imag());
-      add(type, i, a != b ? p.param + (q.param - p.param) * a / (a - b) : q.param, d);
-    }
-    if (p.floquet.size() == q.floquet.size() && p.trivial >= 0 && q.trivial >= 0) {
-      std::vector<PetscReal> mp, mq;
-      for (size_t k = 0; k < p.floquet.size(); ++k)
-        if ((PetscInt)k != p.trivial) mp.push_back(std::abs(p.floquet[k]));
-      for (size_t k = 0; k < q.floquet.size(); ++k)
-        if ((PetscInt)k != q.trivial) mq.push_back(std::abs(q.floquet[k]));
-      PetscReal jmp = 0;
-      for (size_t k = 0; k < mp.size() && k < mq.size(); ++k) jmp = std::max(jmp, std::abs(mp[k] - mq[k]));
-      if (jmp > jump_tol) {
-        char d[96];
-        std::snprintf(d, sizeof d, "a non-trivial |multiplier| changes by %.3f", (double)jmp);
-        add("monodromy-jump", i, 0.5 * (p.param + q.param), d);
-      }
-    }
-    if (p.equilibrium_unstable >= 0 && q.equilibrium_unstable >= 0 && (p.equilibrium_unstable == 0) != (q.equilibrium_unstable == 0)) {
-      const PetscReal a = p.max_growth, b = q.max_growth;
-      add("hopf", i, std::isfinite(a) && std::isfinite(b) && a != b ? p.param + (q.param - p.param) * a / (a - b) : q.param,
-          "the sliding equilibrium changes stability (zero crossing of the growth rate)");
-    }
-  }
-  for (size_t i = 1; i + 1 < P.size(); ++i)
-    if ((P[i].param - P[i - 1].param) * (P[i + 1].param - P[i].param) < 0) {
-      // Vertex of the parabola through the three points, in the point index.
-      const PetscReal a = P[i - 1].param, b = P[i].param, c = P[i + 1].param, den = a - 2 * b + c;
-      const PetscReal x = den != 0 ? 0.5 * (a - c) / den : 0;
-      add("fold", i, b - 0.25 * (a - c) * x, P[i].param > P[i - 1].param ? "the parameter turns back (maximum)" : "the parameter turns back (minimum)");
-    }
-  // Coexistence of a stable cycle with a stable equilibrium: hysteresis.
-  PetscReal clo = kInf, chi = -kInf;
-  size_t    cfirst = 0;
-  for (size_t i = 0; i < P.size(); ++i)
-    if (P[i].stable_cycle && P[i].equilibrium_unstable == 0) {
-      if (clo == kInf) cfirst = i;
-      clo = std::min(clo, P[i].param), chi = std::max(chi, P[i].param);
-    }
-  if (clo <= chi)
-    res.events.push_back({"coexistence", (PetscInt)std::max<size_t>(cfirst, 1), 0.5 * (clo + chi), clo, chi,
-                          "stable cycle and stable sliding equilibrium at the same parameter (hysteresis range)"});
-  for (auto &ev : res.events)
-    if (ev.type == "lift-off" || ev.type == "separation-ends" || ev.type == "stick" || ev.type == "stick-ends") {
-      // No bisection across a fold: the bracket is not an interval of one branch piece.
-      bool fold = false;
-      for (auto &f : res.events) fold = fold || (f.type == "fold" && (f.point == ev.point || f.point == ev.point - 1));
-      if (!fold) PetscCall(Locate(res, ev));
-    }
   PetscFunctionReturn(0);
 }
 

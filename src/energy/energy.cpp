@@ -59,7 +59,7 @@ PetscReal EnergyAnalysis::Reactions(PetscReal q) const
     }
     sum += acc;
   }
-  return cs.mu * sum / ns;
+  return cs.Mu() * sum / ns;
 }
 
 bool EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est) const

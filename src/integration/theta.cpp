@@ -735,7 +735,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
           continue;
         }
         // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
-        const PetscReal mu = cs.mu, rn = r[o + kN];
+        const PetscReal mu = cs.Mu(), rn = r[o + kN];
         if (rect) {
           const PetscReal sg = r[o + kT] > 0 ? -1.0 : 1.0; // sign(s_t), from r_t = -mu r_n sign(s_t)
           tAc_(q0 + kT, q0 + kT) = 1.0, tAc_(q0 + kT, qn) = mu * sg;

@@ -348,7 +348,7 @@ public:
         status[c] = kOpen;
         continue;
       }
-      const PetscReal a = (1 - 1e-9) * cs_.mu * rn; // Status's bound, the same expression
+      const PetscReal a = (1 - 1e-9) * cs_.Mu() * rn; // Status's bound, the same expression
       if (rectilinear) {
         status[c] = std::abs(r[o + kT]) < a ? kStick : kSlip;
         continue;
@@ -517,7 +517,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   // Warm start: the steady-sliding reactions.
   Eigen::VectorXd r = Eigen::VectorXd::Zero(3 * nc);
   for (PetscInt c = 0; c < nc; ++c) {
-    r[3 * c + kT] = model.contacts.mu * eq.N[c];
+    r[3 * c + kT] = model.contacts.Mu() * eq.N[c];
     r[3 * c + kN] = eq.N[c];
   }
   std::unique_ptr<Ledger> ledger;

@@ -1,6 +1,5 @@
 #include "squeal/model/builders.h"
 #include "squeal/model/pad.h"
-#include "squeal/reduction/craig_bampton.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 #include "squeal/core/sparse.h"
@@ -92,8 +91,7 @@ PetscErrorCode BuildThreeDof(MPI_Comm comm, const ThreeDofParams &p, Model &mode
   }
   model.contacts.points = {pt};
   model.contacts.law    = p.law;
-  model.contacts.mu     = p.mu;
-  model.contacts.V      = p.V;
+  model.contacts.SetFriction(p.mu, p.V);
   model.name            = p.spring_frame ? "three_dof (spring frame)" : "three_dof";
   PetscCall(model.Validate());
   PetscFunctionReturn(0);
@@ -142,8 +140,7 @@ PetscErrorCode BuildChain(MPI_Comm comm, const ChainParams &p, Model &model)
   else model.C.reset();
   PetscCall(io::VecCreateFromValues(comm, F, model.F.out()));
   model.contacts.law = p.cell.law;
-  model.contacts.mu  = p.cell.mu;
-  model.contacts.V   = p.cell.V;
+  model.contacts.SetFriction(p.cell.mu, p.cell.V);
   model.name         = "chain";
   PetscCall(model.Validate());
   PetscFunctionReturn(0);
@@ -363,8 +360,7 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
 
   PetscCall(ReadContactTable(comm, s.contacts.c_str(), model.contacts));
   model.contacts.law = s.law;
-  model.contacts.mu  = s.mu;
-  model.contacts.V   = s.V;
+  model.contacts.SetFriction(s.mu, s.V);
   model.name         = "file:" + s.stiffness;
   PetscCall(model.Validate());
   PetscFunctionReturn(0);
@@ -465,8 +461,7 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
   }
   PetscCall(PairContactFaces(comm, *mesh, s.pairing, model.contacts, &rep));
   model.contacts.law = s.law;
-  model.contacts.mu  = s.mu;
-  model.contacts.V   = s.V;
+  model.contacts.SetFriction(s.mu, s.V);
   model.name         = "calculix:" + s.job;
   model.mesh         = mesh;
   PetscCall(model.Validate());
@@ -485,7 +480,7 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir, bool *reduced, bool options_only)
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir, bool options_only)
 {
   const char *const types[] = {"three_dof", "chain", "file", "pad", "calculix"};
   const char *const laws[]  = {"planar", "rectilinear"};
@@ -608,48 +603,6 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
     case 4: PetscCall(BuildCalculix(comm, ccx, model)); break;
     default: PetscCall(BuildFromFiles(comm, fs, model)); break;
     }
-  // -reduce_type craig_bampton replaces the validated full model by its reduction; the sweep,
-  // which builds one model per rank on PETSC_COMM_SELF, then reduces once per rank.
-  {
-    CraigBampton cb(comm);
-    bool         reduce = false;
-    PetscCall(cb.SetFromOptions(&reduce));
-    if (options_only) PetscFunctionReturn(0);
-    if (reduced) *reduced = reduce && !help;
-    if (reduce && !help) {
-      Model red(comm);
-      PetscCall(cb.Reduce(model, red));
-      PetscMPIInt wrank, rank;
-      PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &wrank));
-      PetscCallMPI(MPI_Comm_rank(comm, &rank));
-      if (wrank == 0 && rank == 0) PetscCall(cb.View(PETSC_VIEWER_STDOUT_SELF));
-      model.M        = std::move(red.M);
-      model.C        = std::move(red.C);
-      model.K        = std::move(red.K);
-      model.F        = std::move(red.F);
-      // The mesh follows what stays physical: the contact nodes' DOFs (Craig-Bampton keeps them,
-      // renumbered in contact order). With interface reduction the in-plane DOFs are modal, and
-      // the modes and fixed-interface coordinates are not on the mesh at all: no expansion yet.
-      if (model.mesh && !red.contacts.HasExplicitColumns()) {
-        auto                          mesh = std::make_shared<io::FeMesh>(*model.mesh);
-        std::map<PetscInt, PetscInt> to_red;
-        for (size_t c = 0; c < model.contacts.points.size(); ++c)
-          for (size_t j = 0; j < model.contacts.points[c].nodes.size(); ++j)
-            for (int k = 0; k < 3; ++k)
-              to_red[model.contacts.points[c].nodes[j].dofs[k]] = red.contacts.points[c].nodes[j].dofs[k];
-        for (auto &d : mesh->dof)
-          for (PetscInt &i : d) {
-            auto it = to_red.find(i);
-            i       = it == to_red.end() ? -1 : it->second;
-          }
-        PetscCall(MatGetSize(model.K, &mesh->full_size, nullptr)); // red.K was moved there above
-        mesh->partial = true;
-        model.mesh    = mesh;
-      } else model.mesh.reset();
-      model.contacts = red.contacts;
-      model.name     = red.name;
-    }
-  }
   if (export_dir) *export_dir = exportdir;
   PetscFunctionReturn(0);
 }

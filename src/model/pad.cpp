@@ -312,8 +312,7 @@ PetscErrorCode BuildPad(MPI_Comm comm, const PadParams &p, Model &model)
       model.contacts.points.push_back(pt);
     }
   model.contacts.law = p.law;
-  model.contacts.mu  = p.mu;
-  model.contacts.V   = p.V;
+  model.contacts.SetFriction(p.mu, p.V);
   char name[128];
   PetscCall(PetscSNPrintf(name, sizeof(name), "pad %" PetscInt_FMT "x%" PetscInt_FMT "x(%" PetscInt_FMT "+%" PetscInt_FMT ")",
                           p.n_r, p.n_t, p.n_fric, p.n_steel));

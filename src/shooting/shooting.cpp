@@ -181,7 +181,7 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   const PetscInt nc = model.contacts.Size();
   r_init_.setZero(3 * nc);
   for (PetscInt c = 0; c < nc; ++c) {
-    r_init_[3 * c + kT] = model.contacts.mu * eq.N[c];
+    r_init_[3 * c + kT] = model.contacts.Mu() * eq.N[c];
     r_init_[3 * c + kN] = eq.N[c];
   }
   for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_, &lastx_, &trx_, &jx_, &deflF_}) PetscCall(CreateState(v->out()));
@@ -343,9 +343,8 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   pre_T_       = T0;
   pre_measured_ = 0, recentred_ = false;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
-  PetscCall(ti_->SetUp(*model_, T0 / steps));
-  T_setup_ = T0;
-  ++setups_;
+  T_setup_ = PETSC_MAX_REAL; // this model, or its new mu or load, may not be the one last set up
+  PetscCall(SetUpAt(T0));
   PetscCall(SetUpNewton());
   PetscCall(CreateState(x.out()));
   if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, x));

@@ -15,7 +15,7 @@ namespace squeal {
 PetscErrorCode Shooting::SetUpAt(PetscReal T)
 {
   PetscFunctionBeginUser;
-  // A new period means a new step size: (S1)-(S3) again.
+  // A new period means a new step size: (S1)-(S3) again. The one place shooting sets the step.
   if (T != T_setup_) {
     PetscCall(ti_->SetUp(*model_, T / steps));
     T_setup_ = T;
@@ -156,9 +156,7 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
              N);
   PetscCall(EnsureTrajectory(x));
   if (T_setup_ != trT_) { // a test or a difference product moved the step size since
-    PetscCall(ti_->SetUp(*model_, trT_ / steps));
-    T_setup_ = trT_;
-    ++setups_;
+    PetscCall(SetUpAt(trT_));
     for (auto &f : trF_) f.valid = false;
   }
   const PetscInt nc = model_->contacts.Size();

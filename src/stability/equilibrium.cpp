@@ -165,16 +165,16 @@ PetscErrorCode EquilibriumSolver::Solve(const Model &model, SlidingEquilibrium &
   if (!ksp_) PetscCall(SetFromOptions());
   PetscCall(VecDuplicate(model.F, eq.U.out()));
   PetscCall(PetscObjectSetName((PetscObject)(Vec)eq.U, "U"));
-  eq.mu = cs.mu;
+  eq.mu = cs.Mu();
   for (eq.passes = 1; eq.passes <= max_passes_; ++eq.passes) {
     eq.active.clear();
     for (PetscInt c = 0; c < nc; ++c)
       if (closed[c]) eq.active.push_back(c);
-    PetscCall(SolveBordered(model, eq.active, cs.mu, eq.U, eq.N, &ok));
+    PetscCall(SolveBordered(model, eq.active, cs.Mu(), eq.U, eq.N, &ok));
     if (!ok) {
       // Singular at mu: friction-induced divergence only if the frictionless matrix is regular.
       bool ok0 = false;
-      if (cs.mu != 0) {
+      if (cs.Mu() != 0) {
         VecH                   U0;
         std::vector<PetscReal> N0;
         PetscCall(VecDuplicate(model.F, U0.out()));
@@ -183,13 +183,13 @@ PetscErrorCode EquilibriumSolver::Solve(const Model &model, SlidingEquilibrium &
       PetscCheck(!ok0, comm_, kErrInput,
                  "no steady sliding: friction-induced divergence at mu = %g (the bordered equilibrium matrix "
                  "[K -B_mu; H_n^T 0] is singular at this mu and regular at mu = 0)",
-                 (double)cs.mu);
+                 (double)cs.Mu());
       char mu[32]; // PETSc's %g would print "0." for 0
-      std::snprintf(mu, sizeof mu, "%g", (double)cs.mu);
+      std::snprintf(mu, sizeof mu, "%g", (double)cs.Mu());
       SETERRQ(comm_, kErrInput,
               "the bordered equilibrium matrix [K -B_mu; H_n^T 0] is singular at mu = %s%s: K with the %zu closed contact(s) "
               "leaves a rigid-body motion free (missing support or zero stiffness)",
-              mu, cs.mu != 0 ? " and at mu = 0" : "", eq.active.size());
+              mu, cs.Mu() != 0 ? " and at mu = 0" : "", eq.active.size());
     }
     PetscCall(cs.LocalComponents(eq.U, comp));
     eq.gap.resize(nc);
@@ -222,10 +222,10 @@ PetscErrorCode EquilibriumSolver::Solve(const Model &model, SlidingEquilibrium &
     PetscCall(VecDuplicate(model.F, U0.out()));
     PetscCall(SolveBordered(model, all, 0.0, U0, N0, &ok));
     const bool frictionless_closed = ok && std::any_of(N0.begin(), N0.end(), [](PetscReal x) { return x > 0; });
-    PetscCheck(!(cs.mu > 0 && frictionless_closed), comm_, kErrInput,
+    PetscCheck(!(cs.Mu() > 0 && frictionless_closed), comm_, kErrInput,
                "no steady sliding: friction-induced divergence at mu = %g (friction drives the structure into the surface; "
                "an equilibrium exists only with less friction)",
-               (double)cs.mu);
+               (double)cs.Mu());
     SETERRQ(comm_, kErrInput,
             "no closed contact at equilibrium: the load lifts all %" PetscInt_FMT " point(s) off the surface "
             "(check the sign of the preload)",

@@ -36,7 +36,7 @@ PetscErrorCode BuildReducedProblem(const Model &model, const SlidingEquilibrium 
   const ContactSet &cs = model.contacts;
   const MPI_Comm    comm = model.comm();
   const PetscInt    N    = model.Size();
-  const PetscReal   mu   = cs.mu;
+  const PetscReal   mu   = cs.Mu();
   PetscInt          rstart, rend;
   PetscFunctionBeginUser;
   PetscCall(VecGetOwnershipRange(model.F, &rstart, &rend));

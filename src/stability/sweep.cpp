@@ -3,7 +3,6 @@
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
-#include "squeal/model/builders.h"
 #include "squeal/stability/equilibrium.h"
 #include "squeal/stability/stability.h"
 
@@ -17,39 +16,6 @@ namespace squeal {
 namespace {
 
 constexpr PetscReal kNaN = std::numeric_limits<PetscReal>::quiet_NaN();
-
-// Everything one rank needs to solve grid points on its own.
-struct PointSolver {
-  Model             model{PETSC_COMM_SELF};
-  EquilibriumSolver eqs{PETSC_COMM_SELF};
-  StabilitySolver   stab{PETSC_COMM_SELF};
-
-  PetscErrorCode Setup()
-  {
-    PetscFunctionBeginUser;
-    PetscCall(ModelCreateFromOptions(PETSC_COMM_SELF, model));
-    PetscCall(eqs.SetFromOptions());
-    PetscCall(stab.SetComputeModes(false));
-    PetscCall(stab.SetFromOptions());
-    PetscCall(stab.SetComputeModes(false));
-    PetscFunctionReturn(0);
-  }
-
-  // Solves one point; a point without steady sliding is a result (failed), not an error.
-  PetscErrorCode Solve(PetscReal mu, PetscReal V, StabilityResult &res, bool *ok)
-  {
-    PetscFunctionBeginUser;
-    model.contacts.mu = mu;
-    model.contacts.V  = V;
-    SlidingEquilibrium eq;
-    PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
-    PetscErrorCode ierr = eqs.Solve(model, eq);
-    if (!ierr) ierr = stab.Solve(model, eq, res);
-    PetscCall(PetscPopErrorHandler());
-    *ok = !ierr;
-    PetscFunctionReturn(0);
-  }
-};
 
 } // namespace
 
@@ -93,14 +59,12 @@ PetscErrorCode SweepSolver::SetFromOptions(PetscReal default_V)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SweepSolver::Solve(SweepResult &res)
+PetscErrorCode SweepSolver::Solve(const SweepPoint &point, SweepResult &res)
 {
   PetscMPIInt rank, size;
-  PointSolver ps;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   PetscCallMPI(MPI_Comm_size(comm_, &size));
-  PetscCall(ps.Setup());
   auto grid = [](PetscReal a, PetscReal b, PetscInt n) {
     std::vector<PetscReal> g(n);
     for (PetscInt i = 0; i < n; ++i) g[i] = n == 1 ? a : a + (b - a) * i / (n - 1);
@@ -130,7 +94,7 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
     if (p >= npts) continue;
     StabilityResult sr;
     bool            ok;
-    PetscCall(ps.Solve(res.mu[p % mu_n_], res.V[p / mu_n_], sr, &ok));
+    PetscCall(point(res.mu[p % mu_n_], res.V[p / mu_n_], sr, &ok));
     // The point's eigensolve, on this rank alone, fails at its first monitor call after a signal.
     if (!ok) failed[p] = InterruptSignal() ? 2 : 1;
     else {
@@ -211,7 +175,7 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
         const PetscReal m = 0.5 * (a + b);
         StabilityResult sr;
         bool            ok;
-        PetscCall(ps.Solve(m, res.V[iv], sr, &ok));
+        PetscCall(point(m, res.V[iv], sr, &ok));
         if (!ok) break;
         PetscInt        w;
         const PetscReal sm = sr.MaxOscillatorySigma(&w);
@@ -223,7 +187,7 @@ PetscErrorCode SweepSolver::Solve(SweepResult &res)
       if (std::isnan(f_at)) { // interpolate the frequency of the most unstable mode on the grid
         StabilityResult sr;
         bool            ok;
-        PetscCall(ps.Solve(crit[iv], res.V[iv], sr, &ok));
+        PetscCall(point(crit[iv], res.V[iv], sr, &ok));
         PetscInt w;
         sr.MaxOscillatorySigma(&w);
         if (ok && w >= 0) f_at = sr.modes[w].Frequency();

@@ -78,12 +78,12 @@ inline std::vector<std::complex<double>> BorderedReference(const Eigen::MatrixXd
   const Eigen::MatrixXd Ht = DenseColumns(cs, n, kT), Hb = DenseColumns(cs, n, kB), Hn = DenseColumns(cs, n, kN);
   Eigen::MatrixXd Db = Eigen::MatrixXd::Zero(n, n);
   if (cs.law == FrictionLaw::Planar)
-    for (Eigen::Index c = 0; c < nc; ++c) Db += cs.mu * N[c] / cs.Speed(c) * Hb.col(c) * Hb.col(c).transpose();
+    for (Eigen::Index c = 0; c < nc; ++c) Db += cs.Mu() * N[c] / cs.Speed(c) * Hb.col(c) * Hb.col(c).transpose();
   Eigen::MatrixXd M2 = Eigen::MatrixXd::Zero(s, s), C2 = M2, K2 = M2;
   M2.topLeftCorner(n, n)   = M;
   C2.topLeftCorner(n, n)   = C + Db;
   K2.topLeftCorner(n, n)   = K;
-  K2.topRightCorner(n, nc) = -(Hn + cs.mu * Ht);
+  K2.topRightCorner(n, nc) = -(Hn + cs.Mu() * Ht);
   K2.bottomLeftCorner(nc, n) = Hn.transpose();
   // [0 I; -K2 -C2] z = lambda [I 0; 0 M2] z
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(2 * s, 2 * s), B = A;

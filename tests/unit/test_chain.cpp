@@ -2,6 +2,7 @@
 // speeds, H not the identity. Checked against dense references that share no code with the
 // library's reduction (bordered QZ of (4.4)), and through the stability map.
 #include "dense.h"
+#include "squeal/app/pipeline.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/stability.h"
 #include "squeal/stability/sweep.h"
@@ -99,10 +100,11 @@ TEST(Sweep, CriticalMuOfReferenceCases)
   for (const Case &c : cases) {
     ASSERT_EQ(PetscOptionsSetValue(nullptr, "-contact_friction", c.friction), 0);
     ASSERT_EQ(PetscOptionsSetValue(nullptr, "-contact_v", std::to_string(c.V).c_str()), 0);
-    SweepSolver sw(PETSC_COMM_WORLD);
-    ASSERT_EQ(sw.SetFromOptions(c.V), 0);
+    Pipeline pl(PETSC_COMM_WORLD); // the program's route: the points' models from the options
+    ASSERT_EQ(pl.BuildModel(), 0);
+    ASSERT_EQ(pl.SetFromOptions(), 0);
     SweepResult r;
-    ASSERT_EQ(sw.Solve(r), 0);
+    ASSERT_EQ(pl.Sweep(r), 0);
     ASSERT_EQ(r.critical_mu.size(), 1u);
     // docs/method.md §8 gives mu_c to 6 digits (bisection to 1e-8).
     EXPECT_NEAR(r.critical_mu[0], c.mu_c, 1e-6) << c.friction << " V = " << c.V;
@@ -128,10 +130,11 @@ TEST(Sweep, UndampedPlanarCriticalMuIsKtbOverKnb)
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-sweep_v_n", "2"), 0);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-sweep_v_min", "0.75"), 0);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-sweep_v_max", "3"), 0);
-  SweepSolver sw(PETSC_COMM_WORLD);
-  ASSERT_EQ(sw.SetFromOptions(3.0), 0);
+  Pipeline pl(PETSC_COMM_WORLD); // the program's route: the points' models from the options
+  ASSERT_EQ(pl.BuildModel(), 0);
+  ASSERT_EQ(pl.SetFromOptions(), 0);
   SweepResult r;
-  ASSERT_EQ(sw.Solve(r), 0);
+  ASSERT_EQ(pl.Sweep(r), 0);
   ThreeDofParams p;
   PetscReal      Kx[3][3], K[3][3];
   ThreeDofStiffness(p, Kx, K);

@@ -59,7 +59,7 @@ void Start(Stepper &s, const Model &model, const SlidingEquilibrium &eq, PetscIn
   PetscCallAbort(PETSC_COMM_WORLD, VecRestoreArray(s.dU, &du));
   const PetscInt nc = model.contacts.Size();
   s.r.setZero(3 * nc);
-  for (PetscInt c = 0; c < nc; ++c) s.r[3 * c + kT] = model.contacts.mu * eq.N[c], s.r[3 * c + kN] = eq.N[c];
+  for (PetscInt c = 0; c < nc; ++c) s.r[3 * c + kT] = model.contacts.Mu() * eq.N[c], s.r[3 * c + kN] = eq.N[c];
 }
 
 } // namespace

@@ -3,6 +3,7 @@
 // point (mu_c by bisection on the linear stability) to mu = 0.6 with their regime changes checked
 // by stand-alone shooting on both sides; the branch in V at fixed mu; a failed step halves the
 // step and keeps the branch.
+#include "squeal/app/pipeline.h"
 #include "squeal/continuation/continuation.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
@@ -221,7 +222,7 @@ TEST(Continuation, BranchInVAtFixedMuWithItsRegimeChanges)
   EXPECT_EQ(res.param_name, "v");
   ASSERT_GE(res.points.size(), 10u);
   EXPECT_EQ(res.points.back().param, 2.0);
-  EXPECT_EQ(pr.model.contacts.V, 0.75) << "the model's V is restored";
+  EXPECT_EQ(pr.model.contacts.V(), 0.75) << "the model's V is restored";
   for (size_t i = 1; i < res.points.size(); ++i) EXPECT_GT(res.points[i].param, res.points[i - 1].param);
   struct Change {
     const char *type;
@@ -255,6 +256,7 @@ TEST(Continuation, ParameterSlicesOverRankGroupsGiveOneBranch)
   Continuation c(PETSC_COMM_WORLD);
   ASSERT_EQ(c.SetFromOptions(), 0);
   c.lmin = 0.4, c.lmax = 0.6, c.slices = 2, c.equilibrium = PETSC_FALSE;
+  c.SetBranchStarter(Pipeline::SliceStarter()); // each slice's chain, as the program runs it
   ContinuationResult res;
   ASSERT_EQ(RunBranch(pr, c, res), 0);
   ASSERT_GE(res.points.size(), 6u);

@@ -24,9 +24,8 @@ ContactSet MakeSet(PetscInt nc, PetscReal mu, FrictionLaw law, std::mt19937 &gen
 {
   ContactSet                             cs;
   std::uniform_real_distribution<double> u(0.5, 1.5);
-  cs.mu  = mu;
+  cs.SetFriction(mu, 2.0);
   cs.law = law;
-  cs.V   = 2.0;
   cs.points.resize(nc);
   for (auto &p : cs.points) p.speed_factor = u(gen);
   return cs;
@@ -76,7 +75,7 @@ Problem Construct(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, c
     }
     gap0[c]   = -h * v[o + kN]; // closed: end gap 0
     r[o + kN] = 1000 * u(gen);
-    const double a = cs.mu * r[o + kN];
+    const double a = cs.Mu() * r[o + kN];
     if (states[c] == kStickS) { // zero slip, |r_T| < mu r_n
       v[o + kT] = V;
       v[o + kB] = rect ? s(gen) : 0.0; // rectilinear: b is frictionless, its velocity free
@@ -326,7 +325,7 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
       ASSERT_EQ(VecAssemblyBegin(run[k].dU), 0);
       ASSERT_EQ(VecAssemblyEnd(run[k].dU), 0);
       run[k].r = Eigen::VectorXd::Zero(3 * nc);
-      for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[c], run[k].r[3 * c + kT] = model.contacts.mu * eq.N[c];
+      for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[c], run[k].r[3 * c + kT] = model.contacts.Mu() * eq.N[c];
     }
     ASSERT_EQ(run[1].ti.Contact().Solver(), ContactSolver::kNewton);
     ASSERT_FALSE(run[1].ti.FixedSizeKernel());

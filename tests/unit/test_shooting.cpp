@@ -278,7 +278,7 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
     flow(0.0, Eigen::VectorXd::Zero(2 * N), base); // also sets the integrator up for h = T / N_s
     // One step from Z0, the fixed point started from the steady-sliding reactions as in Flow.
     Eigen::VectorXd r = Eigen::VectorXd::Zero(3);
-    r[kT] = pr.model.contacts.mu * pr.eq.N[0], r[kN] = pr.eq.N[0];
+    r[kT] = pr.model.contacts.Mu() * pr.eq.N[0], r[kN] = pr.eq.N[0];
     VecCopy(U0, U), VecCopy(dU0, dU);
     StepInfo info;
     ASSERT_EQ(pr.ti.Step(U, dU, r, &info), 0);

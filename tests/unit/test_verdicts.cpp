@@ -3,6 +3,7 @@
 // overdamped transient, and the record budget of the transient.
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
+#include "squeal/app/pipeline.h"
 #include "squeal/model/builders.h"
 #include "squeal/stability/sweep.h"
 
@@ -285,10 +286,11 @@ TEST(Verdicts, SweepTracksOneModeAcrossMu)
 {
   // Case 1 (mu_c = 0.143068, docs/method.md §8): after tracking, one slot holds the unstable mode at
   // every grid point above mu_c, and its growth rate moves by less than the gap between the modes.
-  SweepSolver sw(PETSC_COMM_WORLD);
-  ASSERT_EQ(sw.SetFromOptions(3.0), 0);
+  Pipeline pl(PETSC_COMM_WORLD); // the program's route: the points' models from the options
+  ASSERT_EQ(pl.BuildModel(), 0);
+  ASSERT_EQ(pl.SetFromOptions(), 0);
   SweepResult r;
-  ASSERT_EQ(sw.Solve(r), 0);
+  ASSERT_EQ(pl.Sweep(r), 0);
   ASSERT_EQ(r.k, 2);
   const size_t n    = r.mu.size();
   auto         at   = [&](size_t i, PetscInt s, int c) { return r.eigenvalues[((i * r.k) + s) * 2 + c]; };

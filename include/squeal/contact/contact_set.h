@@ -49,12 +49,22 @@ enum Direction : int { kT = 0, kB = 1, kN = 2 };
 class ContactSet {
 public:
   FrictionLaw               law = FrictionLaw::Planar;
-  PetscReal                 mu  = 0.0; // Coulomb coefficient
-  PetscReal                 V   = 1.0; // reference counter-surface speed (m/s)
   std::vector<ContactPoint> points;
 
+  // The operating point (mu, V) has one writer: whoever caches something that depends on it (the
+  // contact solver's sliding speeds) compares FrictionState() with the state it cached, so a
+  // continuation in V or a sweep cannot flow with stale speeds.
+  void SetFriction(PetscReal mu, PetscReal V)
+  {
+    mu_ = mu, V_ = V;
+    ++friction_state_;
+  }
+  PetscReal Mu() const { return mu_; } // Coulomb coefficient
+  PetscReal V() const { return V_; }   // reference counter-surface speed (m/s)
+  unsigned long FrictionState() const { return friction_state_; }
+
   PetscInt  Size() const { return (PetscInt)points.size(); }
-  PetscReal Speed(PetscInt c) const { return V * points[c].speed_factor; }
+  PetscReal Speed(PetscInt c) const { return V_ * points[c].speed_factor; }
   const Eigen::Vector3d &Axis(PetscInt c, int dir) const
   {
     return dir == kT ? points[c].t : (dir == kB ? points[c].b : points[c].n);
@@ -102,6 +112,10 @@ public:
   PetscErrorCode AddForce(const PetscReal *r, Vec R) const;
 
   PetscErrorCode View(PetscViewer viewer) const;
+
+private:
+  PetscReal     mu_ = 0.0, V_ = 1.0;
+  unsigned long friction_state_ = 0;
 };
 
 } // namespace squeal

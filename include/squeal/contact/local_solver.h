@@ -177,7 +177,8 @@ public:
     const Eigen::Map<const Eigen::Matrix<PetscReal, M, M>> hW(hW_.data(), 3 * nc, 3 * nc);
     const MapC                                             rho_n(rho_n_.data(), nc), rho_t(rho_t_.data(), nc), speed(speed_.data(), nc);
     Eigen::Map<Eigen::Matrix<PetscReal, M, 1>>             v(v_.data(), 3 * nc);
-    p_.mu          = cs_->mu; // read at every solve, as callers may change mu between steps
+    RefreshFriction();
+    p_.mu          = cs_->Mu(); // read at every solve, as callers may change mu between steps
     p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
     if constexpr (M == Eigen::Dynamic) {
       if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r);
@@ -199,6 +200,14 @@ public:
   PetscReal RhoT(PetscInt c) const { return rho_t_[c]; }
 
 private:
+  // The sliding speeds V_c follow ContactSet::SetFriction (a continuation in V, a sweep point)
+  // without a new Setup: one comparison per solve.
+  void RefreshFriction()
+  {
+    if (cs_->FrictionState() == friction_state_) return;
+    for (Eigen::Index c = 0; c < speed_.size(); ++c) speed_[c] = cs_->Speed(c);
+    friction_state_ = cs_->FrictionState();
+  }
   using CRef = Eigen::Ref<const Eigen::VectorXd>;
   using Ref  = Eigen::Ref<Eigen::VectorXd>;
   LocalSolveInfo SolveNewton(CRef w_f, CRef gap0, Ref r);
@@ -211,6 +220,7 @@ private:
   bool      Direction();        // d_ = -J^-1 F_ with the factor held; false if not finite
 
   const ContactSet *cs_ = nullptr;
+  unsigned long     friction_state_ = 0; // cs_->FrictionState() that speed_ holds
   Eigen::MatrixXd   hW_; // h W
   Eigen::SparseMatrix<PetscReal> hWs_; // h W when set up sparse (then hW_ is empty)
   bool              sparse_ = false;

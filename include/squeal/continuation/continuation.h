@@ -33,6 +33,7 @@
 #include "squeal/stability/stability.h"
 
 #include <complex>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -76,6 +77,22 @@ struct ContinuationResult {
   bool Covered() const;
 };
 
+// A slice's start on its own group of ranks: the model at one parameter value and the stages whose
+// shooting run converged there.
+struct BranchStart {
+  Model             &model;
+  EquilibriumSolver &eqs;
+  StabilitySolver   &stab;
+  ThetaIntegrator   &theta;
+  Shooting          &shooting;
+  ShootingResult    &cycle;
+};
+// Builds the whole chain on `comm` with the parameter `param` set to `value`, runs it up to a
+// converged cycle, and calls `use` while it lives (the pipeline's: app/pipeline.h; the slices do not
+// rebuild models themselves).
+using BranchStarter = std::function<PetscErrorCode(MPI_Comm comm, const std::string &param, PetscReal value,
+                                                   const std::function<PetscErrorCode(BranchStart &)> &use)>;
+
 class Continuation {
 public:
   explicit Continuation(MPI_Comm comm) : comm_(comm) {}
@@ -89,6 +106,8 @@ public:
                      const ShootingResult &start, ContinuationResult &res);
   PetscErrorCode View(const ContinuationResult &res, PetscViewer viewer) const;
   PetscErrorCode Write(const ContinuationResult &res, io::H5Writer &out) const;
+  // Where -cont_slices > 1 gets each slice's start.
+  void SetBranchStarter(BranchStarter starter) { starter_ = std::move(starter); }
 
   // Settings, public for tests. The corrector stops on the shooting rule (6.3) with
   // -shoot_eps1/-shoot_eps2, plus |dlambda| / range < eps2.
@@ -114,7 +133,6 @@ private:
   friend struct ContinuationCallbacks;
   PetscErrorCode SetParam(Model &model, PetscReal v) const;
   PetscReal      GetParam(const Model &model) const;
-  PetscErrorCode SetParamAt(PetscReal v, PetscReal T); // the parameter for a flow of period T
   PetscErrorCode RunSlices(ContinuationResult &res);
   bool           down_only_ = false; // a slice: from its upper end towards -cont_min only
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
@@ -133,6 +151,7 @@ private:
   PetscErrorCode Copy(const State &x, State &y) const;
 
   MPI_Comm           comm_;
+  BranchStarter      starter_;
   Model             *model_ = nullptr;
   EquilibriumSolver *eqs_   = nullptr;
   StabilitySolver   *stab_  = nullptr;

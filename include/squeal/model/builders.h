@@ -85,9 +85,8 @@ PetscErrorCode WriteContactTable(MPI_Comm comm, const char *path, const ContactS
 // Options: -model_* for the structure, -contact_mu, -contact_v, -contact_friction. The directory
 // given by -model_export (empty if none) is returned in export_dir; writing it is the caller's
 // choice (a sweep builds one model per rank and must not write it from every rank).
-// options_only: read and check every model, contact and reduction option, build nothing (so that
-// a mistyped option fails before minutes of FE import and reduction).
-PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir = nullptr, bool *reduced = nullptr,
-                                      bool options_only = false);
+// options_only: read and check every model and contact option, build nothing (so that a mistyped
+// option fails before minutes of FE import). The reduction is a step of its own (Pipeline::Reduce).
+PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *export_dir = nullptr, bool options_only = false);
 
 } // namespace squeal

@@ -2,9 +2,10 @@
 // friction coefficient mu_c, the first mu at which the largest growth rate of an oscillatory
 // mode crosses zero, with the frequency at which the modes coalesce.
 //
-// The grid is a batch of independent problems: each rank builds its own copy of the model on
-// PETSC_COMM_SELF and solves a round-robin share of the points (equilibrium recomputed for every
-// mu, since D_b depends on mu N_c); one reduction gathers the table on every rank. mu_c is
+// The grid is a batch of independent problems: each rank solves a round-robin share of the points
+// with the SweepPoint it is given (the pipeline's: its own copy of the model on PETSC_COMM_SELF,
+// equilibrium recomputed for every mu, since D_b depends on mu N_c); one reduction gathers the
+// table on every rank. mu_c is
 // bracketed on the grid and refined by bisection (-sweep_bisect_tol), one V per rank.
 // Every point uses the band-complete stability solver (-stab_fmax); points whose band was not
 // covered are flagged (/sweep/band_covered) and a critical mu found above such a point is marked
@@ -14,6 +15,9 @@
 #include "squeal/core/handle.h"
 #include "squeal/io/h5.h"
 #include "squeal/model/model.h"
+#include "squeal/stability/stability.h"
+
+#include <functional>
 
 #include <string>
 #include <vector>
@@ -37,13 +41,17 @@ struct SweepResult {
   PetscReal MaxSigma(size_t iv, size_t imu) const;
 };
 
+// One grid point on this rank alone: the stability of the sliding equilibrium at (mu, V). A point
+// without steady sliding is a result (*ok = false), not an error.
+using SweepPoint = std::function<PetscErrorCode(PetscReal mu, PetscReal V, StabilityResult &res, bool *ok)>;
+
 class SweepSolver {
 public:
   explicit SweepSolver(MPI_Comm comm) : comm_(comm) {}
   PetscErrorCode SetOptionsPrefix(const char *prefix);
   // -sweep_mu_min/max/n, -sweep_v_min/max/n, -sweep_bisect_tol, -sweep_monitor.
   PetscErrorCode SetFromOptions(PetscReal default_V);
-  PetscErrorCode Solve(SweepResult &res);
+  PetscErrorCode Solve(const SweepPoint &point, SweepResult &res); // collective
   PetscErrorCode View(const SweepResult &res, PetscViewer viewer) const;
   PetscErrorCode Write(const SweepResult &res, io::H5Writer &out) const;
 

@@ -1,0 +1,88 @@
+// The method's chain on one communicator (docs/method.md): the model from the options, its
+// reduction (a step of its own), the sliding equilibrium, its stability, the energy estimate, and
+// from it shooting (with the Floquet multipliers), the transient or the continuation.
+//
+// Everything that runs the chain goes through a Pipeline: the program (app.cpp), each rank's
+// share of a stability sweep (a Pipeline on PETSC_COMM_SELF), each continuation slice (a Pipeline
+// on its group of ranks). So the options are read one way, shooting starts from the estimate one
+// way (-shoot_q_scale, the balance checked), and the operating point (mu, V) has one writer.
+#pragma once
+
+#include "squeal/continuation/continuation.h"
+#include "squeal/energy/energy.h"
+#include "squeal/integration/transient.h"
+#include "squeal/model/model.h"
+#include "squeal/shooting/shooting.h"
+#include "squeal/stability/equilibrium.h"
+#include "squeal/stability/stability.h"
+#include "squeal/stability/sweep.h"
+
+#include <string>
+
+namespace squeal {
+
+// The analyses a run asks for, each with what it starts from: a transient from a mode, shooting
+// from the energy estimate, the continuation from a cycle.
+struct Request {
+  bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
+  bool continuation = false;
+  bool energy_named = false; // the energy curve is asked for, not only shooting's start
+
+  // From the names of -analyses (stability, sweep, transient, energy, shooting, continuation).
+  static PetscErrorCode Parse(MPI_Comm comm, char **names, PetscInt n, Request &req);
+};
+
+class Pipeline {
+public:
+  explicit Pipeline(MPI_Comm comm);
+  MPI_Comm Comm() const { return comm_; }
+
+  // Reads and checks every option of the model, the reduction and each stage, and builds nothing:
+  // a mistyped option fails in the first second, not after minutes of FE import and reduction.
+  PetscErrorCode CheckOptions(const Request &req);
+  // The model from -model_* and -contact_* (ModelCreateFromOptions), not reduced; the directory
+  // of -model_export in *export_dir.
+  PetscErrorCode BuildModel(std::string *export_dir = nullptr);
+  // -reduce_type craig_bampton: the model replaced by its reduction (and its mesh by the DOFs
+  // that stay physical). *reduced: whether it was.
+  PetscErrorCode Reduce(bool *reduced = nullptr);
+  // Every stage's options, once the model is there (the sweep's default V is the model's).
+  PetscErrorCode SetFromOptions(const Request &req = Request());
+  // The operating point: the one writer of mu and V (ContactSet::SetFriction); every stage reads
+  // them from the model. Results computed before it are stale after it.
+  PetscErrorCode SetFriction(PetscReal mu, PetscReal V);
+
+  // The stages, in the method's order; each starts from the results of those before it.
+  PetscErrorCode SolveEquilibrium();
+  PetscErrorCode SolveStability();
+  PetscErrorCode EstimateEnergy();
+  // Shooting from the estimate's orbit scaled by -shoot_q_scale (or -shoot_period's start); fails
+  // when the estimate found no balance. The best iterate is in `cycle` also when it fails.
+  PetscErrorCode Shoot();
+  PetscErrorCode Continue(ContinuationResult &res); // from the converged cycle
+  PetscErrorCode RunTransient(TransientResult &res);
+  PetscErrorCode Sweep(SweepResult &res); // collective; each rank solves its points on a Pipeline of its own
+
+  // A continuation slice's start: a Pipeline on the slice's ranks, run up to a converged cycle.
+  static BranchStarter SliceStarter();
+
+  // The stages (the program views and writes them) and their results.
+  Model              model;
+  EquilibriumSolver  eqs;
+  StabilitySolver    stab;
+  SweepSolver        sweep;
+  ThetaIntegrator    theta;
+  TransientAnalysis  transient;
+  EnergyAnalysis     energy;
+  Shooting           shooting;
+  Continuation       continuation;
+  SlidingEquilibrium eq;
+  StabilityResult    stability;
+  EnergyEstimate     estimate;
+  ShootingResult     cycle;
+
+private:
+  MPI_Comm comm_;
+};
+
+} // namespace squeal

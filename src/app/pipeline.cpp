@@ -1,0 +1,235 @@
+#include "squeal/app/pipeline.h"
+#include "squeal/core/errors.h"
+#include "squeal/model/builders.h"
+#include "squeal/reduction/craig_bampton.h"
+
+#include <map>
+#include <memory>
+#include <utility>
+
+namespace squeal {
+
+PetscErrorCode Request::Parse(MPI_Comm comm, char **names, PetscInt n, Request &req)
+{
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < n; ++i) {
+    const std::string a = names[i];
+    if (a == "stability") req.stability = true;
+    else if (a == "sweep") req.sweep = true;
+    else if (a == "transient") req.transient = req.stability = true; // starts from a mode
+    else if (a == "energy") req.energy = req.energy_named = req.stability = true;
+    else if (a == "shooting") req.shooting = req.energy = req.stability = true; // starts from the estimate
+    else if (a == "continuation") req.continuation = req.shooting = req.energy = req.stability = true; // from the cycle
+    else {
+      SETERRQ(comm, kErrInput, "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation)",
+              a.c_str());
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+Pipeline::Pipeline(MPI_Comm comm)
+  : model(comm), eqs(comm), stab(comm), sweep(comm), theta(comm), transient(comm), energy(comm), shooting(comm), continuation(comm),
+    comm_(comm)
+{
+}
+
+PetscErrorCode Pipeline::CheckOptions(const Request &req)
+{
+  PetscFunctionBeginUser;
+  model.contacts.SetFriction(0, 1); // the sweep's default speed range; values read here are thrown away
+  PetscCall(ModelCreateFromOptions(comm_, model, nullptr, true));
+  bool reduce = false;
+  PetscCall(CraigBampton(comm_).SetFromOptions(&reduce));
+  PetscCall(SetFromOptions(req));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::BuildModel(std::string *export_dir)
+{
+  PetscFunctionBeginUser;
+  PetscCall(ModelCreateFromOptions(comm_, model, export_dir));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::Reduce(bool *reduced)
+{
+  CraigBampton cb(comm_);
+  bool         reduce = false;
+  PetscBool    help   = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsHasHelp(nullptr, &help));
+  PetscCall(cb.SetFromOptions(&reduce));
+  reduce = reduce && !help;
+  if (reduced) *reduced = reduce;
+  if (!reduce) PetscFunctionReturn(0);
+  Model red(comm_);
+  PetscCall(cb.Reduce(model, red));
+  PetscMPIInt wrank, rank;
+  PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &wrank));
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  // One report per run, also when every rank reduces its own copy (the sweep).
+  if (wrank == 0 && rank == 0) PetscCall(cb.View(PETSC_VIEWER_STDOUT_SELF));
+  model.M = std::move(red.M);
+  model.C = std::move(red.C);
+  model.K = std::move(red.K);
+  model.F = std::move(red.F);
+  // The mesh follows what stays physical: the contact nodes' DOFs (Craig-Bampton keeps them,
+  // renumbered in contact order). With interface reduction the in-plane DOFs are modal, and the
+  // modes and fixed-interface coordinates are not on the mesh at all: no expansion yet.
+  if (model.mesh && !red.contacts.HasExplicitColumns()) {
+    auto                         mesh = std::make_shared<io::FeMesh>(*model.mesh);
+    std::map<PetscInt, PetscInt> to_red;
+    for (size_t c = 0; c < model.contacts.points.size(); ++c)
+      for (size_t j = 0; j < model.contacts.points[c].nodes.size(); ++j)
+        for (int k = 0; k < 3; ++k) to_red[model.contacts.points[c].nodes[j].dofs[k]] = red.contacts.points[c].nodes[j].dofs[k];
+    for (auto &d : mesh->dof)
+      for (PetscInt &i : d) {
+        auto it = to_red.find(i);
+        i       = it == to_red.end() ? -1 : it->second;
+      }
+    PetscCall(MatGetSize(model.K, &mesh->full_size, nullptr)); // red.K was moved there above
+    mesh->partial = true;
+    model.mesh    = mesh;
+  } else model.mesh.reset();
+  model.contacts = red.contacts;
+  model.name     = red.name;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::SetFromOptions(const Request &req)
+{
+  PetscFunctionBeginUser;
+  PetscCall(eqs.SetFromOptions());
+  PetscCall(stab.SetFromOptions());
+  PetscCall(sweep.SetFromOptions(model.contacts.V()));
+  PetscCall(theta.SetFromOptions());
+  PetscCall(transient.SetFromOptions());
+  PetscCall(energy.SetFromOptions());
+  energy.full_scan = req.energy_named;
+  PetscCall(shooting.SetFromOptions());
+  PetscCall(continuation.SetFromOptions());
+  continuation.SetBranchStarter(SliceStarter());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::SetFriction(PetscReal mu, PetscReal V)
+{
+  PetscFunctionBeginUser;
+  PetscCheck(mu >= 0 && std::isfinite(mu) && V > 0 && std::isfinite(V), comm_, kErrInput,
+             "operating point mu = %g, V = %g m/s: expected mu >= 0 and V > 0, finite", (double)mu, (double)V);
+  model.contacts.SetFriction(mu, V);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::SolveEquilibrium()
+{
+  PetscFunctionBeginUser;
+  PetscCall(eqs.Solve(model, eq));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::SolveStability()
+{
+  PetscFunctionBeginUser;
+  PetscCall(stab.Solve(model, eq, stability));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::EstimateEnergy()
+{
+  PetscFunctionBeginUser;
+  PetscCall(energy.Estimate(model, eq, stability, estimate));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::Shoot()
+{
+  VecH U0, dU0;
+  PetscFunctionBeginUser;
+  PetscCheck(estimate.mode >= 0, comm_, PETSC_ERR_ARG_WRONGSTATE,
+             "shooting: no unstable mode in the band at mu = %g, V = %g m/s, so no limit cycle to start from", (double)model.contacts.Mu(),
+             (double)model.contacts.V());
+  PetscCheck(estimate.found, comm_, PETSC_ERR_NOT_CONVERGED,
+             "shooting: the energy estimate found no amplitude where damping and reaction powers balance up to %g q_sep; no initial guess "
+             "(raise -energy_q_max_factor or -energy_extend)",
+             (double)estimate.q_max_factor);
+  // Z0 = U_e + s (U0 - U_e), s dU0: the estimate's orbit scaled by -shoot_q_scale.
+  PetscCall(VecDuplicate(estimate.U0, U0.out()));
+  PetscCall(VecDuplicate(estimate.dU0, dU0.out()));
+  PetscCall(VecWAXPY(U0, -1.0, eq.U, estimate.U0));
+  PetscCall(VecAYPX(U0, shooting.q_scale, eq.U));
+  PetscCall(VecCopy(estimate.dU0, dU0));
+  PetscCall(VecScale(dU0, shooting.q_scale));
+  PetscCall(shooting.Solve(model, eq, theta, U0, dU0, shooting.period > 0 ? shooting.period : estimate.T0, cycle));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::Continue(ContinuationResult &res)
+{
+  PetscFunctionBeginUser;
+  PetscCall(continuation.Run(model, eqs, stab, theta, shooting, cycle, res));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::RunTransient(TransientResult &res)
+{
+  PetscFunctionBeginUser;
+  PetscCall(transient.Run(model, eq, stability, theta, res));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::Sweep(SweepResult &res)
+{
+  // Each rank's points on a model of its own (built and reduced once per rank): the points need
+  // no messages, and this pipeline's model keeps its operating point for the analyses after.
+  Pipeline point(PETSC_COMM_SELF);
+  PetscFunctionBeginUser;
+  PetscCall(point.BuildModel());
+  PetscCall(point.Reduce());
+  PetscCall(point.eqs.SetFromOptions());
+  PetscCall(point.stab.SetComputeModes(false));
+  PetscCall(point.stab.SetFromOptions());
+  PetscCall(point.stab.SetComputeModes(false));
+  auto solve = [&point](PetscReal mu, PetscReal V, StabilityResult &sr, bool *ok) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    PetscCall(point.SetFriction(mu, V));
+    // A point without steady sliding is a result (failed), not an error.
+    PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+    PetscErrorCode ierr = point.SolveEquilibrium();
+    if (!ierr) ierr = point.stab.Solve(point.model, point.eq, sr);
+    PetscCall(PetscPopErrorHandler());
+    *ok = !ierr;
+    PetscFunctionReturn(0);
+  };
+  PetscCall(sweep.Solve(solve, res));
+  PetscFunctionReturn(0);
+}
+
+BranchStarter Pipeline::SliceStarter()
+{
+  return [](MPI_Comm comm, const std::string &param, PetscReal value, const std::function<PetscErrorCode(BranchStart &)> &use) -> PetscErrorCode {
+    Pipeline p(comm);
+    PetscFunctionBeginUser;
+    PetscCall(p.BuildModel());
+    PetscCall(p.Reduce());
+    PetscCall(p.SetFromOptions());
+    const ContactSet &cs = p.model.contacts;
+    PetscCall(p.SetFriction(param == "mu" ? value : cs.Mu(), param == "mu" ? cs.V() : value));
+    p.shooting.interruptible = false; // the slice polls between its points
+    PetscCall(p.SolveEquilibrium());
+    PetscCall(p.SolveStability());
+    PetscCall(p.EstimateEnergy());
+    PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
+    PetscErrorCode err = p.Shoot();
+    PetscCall(PetscPopErrorHandler());
+    PetscCheck(!err && p.cycle.converged, comm, PETSC_ERR_NOT_CONVERGED,
+               "continuation slice at %s = %g: shooting from the energy estimate did not converge (%s); change -cont_slices", param.c_str(),
+               (double)value, err && p.cycle.reason.empty() ? "no start" : p.cycle.reason.c_str());
+    BranchStart st{p.model, p.eqs, p.stab, p.theta, p.shooting, p.cycle};
+    PetscCall(use(st));
+    PetscFunctionReturn(0);
+  };
+}
+
+} // namespace squeal
