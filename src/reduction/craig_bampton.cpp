@@ -170,11 +170,49 @@ PetscErrorCode DetectRayleigh(Mat M, Mat K, Mat C, bool *is, PetscReal *a, Petsc
   PetscFunctionReturn(0);
 }
 
+// The constraint modes are solved in blocks of right-hand-side columns, with an interrupt poll
+// between blocks: one multi-RHS solve cannot be polled inside, and the 1353 columns of the
+// 31119-DOF pad take 12-17 s in one solve (docs/records.md, "Constraint modes in blocks"). The
+// factor is reused; only the right-hand side is split.
+constexpr const char *kConstraintWhere = "the Craig-Bampton constraint modes (between two blocks of right-hand sides)";
+
+// Columns per block: block (<= 0: all n at once), at least 1.
+PetscInt BlockSize(PetscInt block, PetscInt n) { return PetscMax(1, block > 0 ? PetscMin(block, n) : n); }
+
+// X(:, j0:j1) = F^{-1} B(:, j0:j1): B holds the right-hand sides either as the sparse transpose
+// (-K_IB)^T (rows j0 .. j1 - 1 taken on rcomm's rank 0 alone: MUMPS takes a sparse right-hand side
+// centralised, by columns, i.e. its transpose by rows) or as a dense block with the rows of X.
+PetscErrorCode SolveBlock(Mat F, Mat B, PetscBool sparse, MPI_Comm rcomm, PetscInt j0, PetscInt j1, PetscInt nI, Mat X)
+{
+  Mat Xb;
+  PetscFunctionBeginUser;
+  PetscCall(MatDenseGetSubMatrix(X, PETSC_DECIDE, PETSC_DECIDE, j0, j1, &Xb));
+  if (sparse) {
+    MatH        Rb;
+    IS          rows, cols;
+    PetscMPIInt rank;
+    PetscCallMPI(MPI_Comm_rank(rcomm, &rank));
+    PetscCall(ISCreateStride(rcomm, rank == 0 ? j1 - j0 : 0, j0, 1, &rows));
+    PetscCall(ISCreateStride(rcomm, rank == 0 ? nI : 0, 0, 1, &cols));
+    PetscCall(MatCreateSubMatrix(B, rows, cols, MAT_INITIAL_MATRIX, Rb.out()));
+    PetscCall(ISDestroy(&rows));
+    PetscCall(ISDestroy(&cols));
+    PetscCall(MatMatTransposeSolve(F, Rb, Xb));
+  } else {
+    Mat Bb;
+    PetscCall(MatDenseGetSubMatrix(B, PETSC_DECIDE, PETSC_DECIDE, j0, j1, &Bb));
+    PetscCall(MatMatSolve(F, Bb, Xb));
+    PetscCall(MatDenseRestoreSubMatrix(B, &Bb));
+  }
+  PetscCall(MatDenseRestoreSubMatrix(X, &Xb));
+  PetscFunctionReturn(0);
+}
+
 // Psi = -K_II^{-1} K_IB into the first nB columns of W, with a sequential factor F of the whole
 // K_II on every rank: each rank solves a contiguous share of the columns alone (the same
 // sequential solve as on one rank: no distributed solution to scatter), then sends every other
 // rank the rows of its share that rank owns in W, in one all-to-all.
-PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Mat W)
+PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, PetscInt block, Mat W)
 {
   MPI_Comm        comm, fcomm;
   PetscMPIInt     size, rank;
@@ -197,7 +235,7 @@ PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Ma
   {
     // (-K_IB)^T, rows c0 .. c0 + k - 1, on this rank alone: MUMPS takes a sparse right-hand side
     // by columns, i.e. its transpose by rows (MatMatTransposeSolve).
-    MatH KbiT;
+    MatH KbiT, B;
     IS   isr, isc;
     Mat *sub;
     PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, KbiT.out()));
@@ -207,12 +245,17 @@ PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Ma
     PetscCall(ISDestroy(&isr));
     PetscCall(ISDestroy(&isc));
     PetscCall(MatScale(sub[0], -1.0));
-    if (k > 0 && sparse_rhs) PetscCall(MatMatTransposeSolve(F, sub[0], X));
-    else if (k > 0) {
-      MatH Bt, B;
+    if (k > 0 && !sparse_rhs) {
+      MatH Bt;
       PetscCall(MatTranspose(sub[0], MAT_INITIAL_MATRIX, Bt.out()));
       PetscCall(MatConvert(Bt, MATSEQDENSE, MAT_INITIAL_MATRIX, B.out()));
-      PetscCall(MatMatSolve(F, B, X));
+    }
+    // Every rank takes as many blocks as rank 0 (the largest share), so that all meet at each poll.
+    const PetscInt b = BlockSize(block, cols[1]), nblocks = (cols[1] + b - 1) / b;
+    for (PetscInt q = 0; q < nblocks; ++q) {
+      const PetscInt j0 = PetscMin(k, q * b), j1 = PetscMin(k, j0 + b);
+      if (j1 > j0) PetscCall(SolveBlock(F, sparse_rhs ? sub[0] : (Mat)B, sparse_rhs, PETSC_COMM_SELF, j0, j1, nI, X));
+      if (q + 1 < nblocks) PetscCall(InterruptPoint(comm, kConstraintWhere));
     }
     PetscCall(MatDestroySubMatrices(1, &sub));
   }
@@ -348,6 +391,13 @@ PetscErrorCode CraigBampton::SetRedundantFactor(bool on)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode CraigBampton::SetRHSBlock(PetscInt block)
+{
+  PetscFunctionBeginUser;
+  rhs_block_ = block;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CraigBampton::SetInterfaceModes(PetscInt k)
 {
   PetscFunctionBeginUser;
@@ -381,6 +431,10 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             &max_modes_, nullptr));
   PetscCall(PetscOptionsBool("-sparse_rhs", "Constraint modes from the sparse right-hand sides -K_IB (MUMPS ICNTL(20) = 1) instead of a dense block",
                              "CraigBampton", sparse_rhs_, &sparse_rhs_, nullptr));
+  PetscCall(PetscOptionsInt("-rhs_block",
+                            "Constraint modes solved in blocks of this many right-hand sides, a signal obeyed between blocks "
+                            "(0: all in one solve)",
+                            "CraigBampton", rhs_block_, &rhs_block_, nullptr));
   PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
@@ -656,38 +710,29 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(PetscTime(&t2));
   cpu[2] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
 
-  // Constraint modes Psi = -K_II^{-1} K_IB: nB right-hand sides in one MatMatSolve, written straight
-  // into the first nB columns of W (no second N x nB copy).
+  // Constraint modes Psi = -K_II^{-1} K_IB: nB right-hand sides in blocks of -reduce_rhs_block
+  // (a signal is obeyed between blocks), written straight into the first nB columns of W (no
+  // second N x nB copy).
   PetscCall(PetscLogStagePush(stages.constraint));
   {
     MatH      R;
     Mat       Wpsi;
     PetscReal nrm;
-    if (redundant) PetscCall(RedundantConstraintModes(Fct, Kib, sparse_rhs_, W));
-    PetscCall(MatDenseGetSubMatrix(W, PETSC_DECIDE, PETSC_DECIDE, 0, nB, &Wpsi));
-    if (redundant) {
-      // Solved above, each rank its own columns.
-    } else if (sparse_rhs_) {
-      // -K_IB as a sparse right-hand side (MUMPS ICNTL(20) = 1): the forward substitution
+    if (redundant) PetscCall(RedundantConstraintModes(Fct, Kib, sparse_rhs_, rhs_block_, W));
+    else {
+      // Sparse: -K_IB as a sparse right-hand side (MUMPS ICNTL(20) = 1): the forward substitution
       // prunes the elimination tree to the paths its few nonzero rows reach. MUMPS takes it
-      // centralised and transposed, so (-K_IB)^T is gathered on rank 0 (rows and columns).
-      MatH        KbiT;
-      IS          rows, cols;
-      PetscMPIInt rank;
-      PetscCallMPI(MPI_Comm_rank(comm, &rank));
-      PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, KbiT.out()));
-      PetscCall(ISCreateStride(comm, rank == 0 ? nB : 0, 0, 1, &rows));
-      PetscCall(ISCreateStride(comm, rank == 0 ? nI : 0, 0, 1, &cols));
-      PetscCall(MatCreateSubMatrix(KbiT, rows, cols, MAT_INITIAL_MATRIX, R.out()));
-      PetscCall(ISDestroy(&rows));
-      PetscCall(ISDestroy(&cols));
+      // centralised and transposed, so each block of (-K_IB)^T is gathered on rank 0.
+      if (sparse_rhs_) PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, R.out()));
+      else PetscCall(MatConvert(Kib, MATDENSE, MAT_INITIAL_MATRIX, R.out()));
       PetscCall(MatScale(R, -1.0));
-      PetscCall(MatMatTransposeSolve(Fct, R, Wpsi));
-    } else {
-      PetscCall(MatConvert(Kib, MATDENSE, MAT_INITIAL_MATRIX, R.out()));
-      PetscCall(MatScale(R, -1.0));
-      PetscCall(MatMatSolve(Fct, R, Wpsi));
+      const PetscInt b = BlockSize(rhs_block_, nB);
+      for (PetscInt j0 = 0; j0 < nB; j0 += b) {
+        if (j0 > 0) PetscCall(InterruptPoint(comm, kConstraintWhere));
+        PetscCall(SolveBlock(Fct, R, sparse_rhs_, comm, j0, PetscMin(nB, j0 + b), nI, W));
+      }
     }
+    PetscCall(MatDenseGetSubMatrix(W, PETSC_DECIDE, PETSC_DECIDE, 0, nB, &Wpsi));
     PetscCall(MatNorm(Wpsi, NORM_FROBENIUS, &nrm));
     PetscCall(MatDenseRestoreSubMatrix(W, &Wpsi));
     PetscCheck(!PetscIsInfOrNanReal(nrm) && nrm < 1e12 * std::sqrt((PetscReal)nB), comm, kErrInput,
