@@ -53,6 +53,11 @@
 
 namespace squeal {
 
+namespace cb { // the steps' data (src/reduction/internal.h)
+struct Partition;
+struct Interior;
+} // namespace cb
+
 struct ReductionInfo {
   PetscInt               N = 0, n_interface = 0, n_modes = 0;
   std::vector<PetscReal> freq;                // Hz, fixed-interface modes kept
@@ -98,6 +103,11 @@ public:
   const ReductionInfo &Info() const { return info_; }
 
 private:
+  // Steps of Reduce that read the options.
+  PetscErrorCode FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in);
+  PetscErrorCode FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in, std::vector<PetscReal> &lam,
+                                     std::vector<PetscInt> &keep);
+
   MPI_Comm      comm_;
   std::string   prefix_ = "reduce_";
   PetscReal     fmax_   = 0;
