@@ -16,8 +16,8 @@ namespace {
 
 // The constraint modes are solved in blocks of right-hand-side columns, with an interrupt poll
 // between blocks: one multi-RHS solve cannot be polled inside, and the 1353 columns of the
-// 31119-DOF pad take 12-17 s in one solve (docs/records.md, "Constraint modes in blocks"). The
-// factor is reused; only the right-hand side is split.
+// 31119-DOF pad take 12-17 s of CPU time in one solve (docs/records.md, "Constraint modes in
+// blocks"). The factor is reused; only the right-hand side is split.
 constexpr const char *kConstraintWhere = "the Craig-Bampton constraint modes (between two blocks of right-hand sides)";
 
 // Columns per block: block (<= 0: all n at once), at least 1.
