@@ -154,6 +154,66 @@ bool FacetWeights(const io::FeMesh &mesh, const Facet &f, const Vec3 &x, PetscRe
   return inside;
 }
 
+namespace {
+
+// Two separate bodies: no node, and no cell, on both faces.
+PetscErrorCode CheckSeparateBodies(MPI_Comm comm, const io::FeMesh &mesh, const FacePairing &spec, const std::vector<long> &pad,
+                                   const std::vector<long> &disc)
+{
+  std::vector<char> where(mesh.x.size(), 0);
+  PetscFunctionBeginUser;
+  for (long n : pad) where[n] |= 1;
+  for (long n : disc) {
+    PetscCheck(!(where[n] & 1), comm, kErrInput,
+               "contact: %s is in both %s and %s; the pad and disc faces must be different nodes of two separate bodies",
+               NodeName(mesh, n).c_str(), spec.pad_set.c_str(), spec.disc_set.c_str());
+    where[n] |= 2;
+  }
+  for (const io::FeMesh::Block &b : mesh.blocks)
+    for (size_t e0 = 0; e0 < b.conn.size(); e0 += b.nodes_per_cell) {
+      int seen = 0;
+      for (int k = 0; k < b.nodes_per_cell; ++k) seen |= where[b.conn[e0 + k]];
+      PetscCheck(seen != 3, comm, kErrInput,
+                 "contact: one cell holds nodes of both %s and %s (e.g. %s): the pairs would be on one body; give the "
+                 "pad's friction face and the disc's face",
+                 spec.pad_set.c_str(), spec.disc_set.c_str(), NodeName(mesh, b.conn[e0]).c_str());
+    }
+  PetscFunctionReturn(0);
+}
+
+// The frame, speed factor and initial gap of the point of pad node p (outward normal np of the pad
+// face) paired with the disc point xd (outward normal n of the disc face).
+PetscErrorCode SetFrame(MPI_Comm comm, const io::FeMesh &mesh, const FacePairing &spec, long p, const Vec3 &np, const Vec3 &xd,
+                        const Vec3 &n, PetscReal r_ref, ContactPoint &pt)
+{
+  const Vec3 e = spec.axis.normalized();
+  PetscFunctionBeginUser;
+  // The disc's outward normal must face the pad: opposite to the pad face's own outward normal.
+  PetscCheck(n.dot(np) < -0.5, comm, kErrInput,
+             "contact: at pad %s the outward normals of %s and %s do not face each other (n_disc . n_pad = %.3g, "
+             "expected near -1): check that the sets are the two faces that touch",
+             NodeName(mesh, p).c_str(), spec.disc_set.c_str(), spec.pad_set.c_str(), n.dot(np));
+  const Vec3      r = xd - spec.axis_point;
+  const Vec3      v = e.cross(r);
+  const Vec3      vt = v - v.dot(n) * n;
+  const PetscReal speed = v.norm();
+  PetscCheck(vt.norm() > 1e-9 * std::max(r.norm(), r_ref), comm, kErrInput,
+             "contact: at pad %s the disc does not slide along its face (point on the axis, or face normal to the "
+             "velocity): check -contact_axis and -contact_axis_point",
+             NodeName(mesh, p).c_str());
+  pt.n            = n;
+  pt.t            = vt.normalized();
+  pt.speed_factor = speed / r_ref;
+  pt.g0           = (X(mesh, p) - xd).dot(n);
+  PetscCheck(pt.g0 >= -spec.tol, comm, kErrInput,
+             "contact: pad %s lies %g m inside the disc along the disc face's normal: overlapping bodies, or the normal "
+             "of %s points the wrong way",
+             NodeName(mesh, p).c_str(), -(double)pt.g0, spec.disc_set.c_str());
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
 PetscErrorCode PairContactFaces(MPI_Comm comm, const io::FeMesh &mesh, const FacePairing &spec, ContactSet &set,
                                 PairingReport *report)
 {
@@ -167,26 +227,7 @@ PetscErrorCode PairContactFaces(MPI_Comm comm, const io::FeMesh &mesh, const Fac
   PetscCheck(std::isfinite(spec.tol) && spec.tol >= 0, comm, kErrInput, "contact: -contact_pair_tol %g: expected >= 0", (double)spec.tol);
   const Vec3 e = spec.axis.normalized();
 
-  // Two separate bodies: no node, and no cell, on both faces.
-  {
-    std::vector<char> where(mesh.x.size(), 0);
-    for (long n : *pad) where[n] |= 1;
-    for (long n : *disc) {
-      PetscCheck(!(where[n] & 1), comm, kErrInput,
-                 "contact: %s is in both %s and %s; the pad and disc faces must be different nodes of two separate bodies",
-                 NodeName(mesh, n).c_str(), spec.pad_set.c_str(), spec.disc_set.c_str());
-      where[n] |= 2;
-    }
-    for (const io::FeMesh::Block &b : mesh.blocks)
-      for (size_t e0 = 0; e0 < b.conn.size(); e0 += b.nodes_per_cell) {
-        int seen = 0;
-        for (int k = 0; k < b.nodes_per_cell; ++k) seen |= where[b.conn[e0 + k]];
-        PetscCheck(seen != 3, comm, kErrInput,
-                   "contact: one cell holds nodes of both %s and %s (e.g. %s): the pairs would be on one body; give the "
-                   "pad's friction face and the disc's face",
-                   spec.pad_set.c_str(), spec.disc_set.c_str(), NodeName(mesh, b.conn[e0]).c_str());
-      }
-  }
+  PetscCall(CheckSeparateBodies(comm, mesh, spec, *pad, *disc));
   const std::vector<Facet> pad_facets = SetFacets(mesh, *pad), disc_facets = SetFacets(mesh, *disc);
   PetscCheck(!pad_facets.empty() && !disc_facets.empty(), comm, kErrInput,
              "contact: node set '%s' holds no cell face (its nodes must cover whole faces of volume cells)",
@@ -284,28 +325,7 @@ PetscErrorCode PairContactFaces(MPI_Comm comm, const io::FeMesh &mesh, const Fac
       rep.surface_pairs++;
       rep.max_distance = std::max(rep.max_distance, dmin);
     }
-    // The disc's outward normal must face the pad: opposite to the pad face's own outward normal.
-    const Vec3 &np = pad_n.at(p);
-    PetscCheck(n.dot(np) < -0.5, comm, kErrInput,
-               "contact: at pad %s the outward normals of %s and %s do not face each other (n_disc . n_pad = %.3g, "
-               "expected near -1): check that the sets are the two faces that touch",
-               NodeName(mesh, p).c_str(), spec.disc_set.c_str(), spec.pad_set.c_str(), n.dot(np));
-    const Vec3      r = xd - spec.axis_point;
-    const Vec3      v = e.cross(r);
-    const Vec3      vt = v - v.dot(n) * n;
-    const PetscReal speed = v.norm();
-    PetscCheck(vt.norm() > 1e-9 * std::max(r.norm(), r_ref), comm, kErrInput,
-               "contact: at pad %s the disc does not slide along its face (point on the axis, or face normal to the "
-               "velocity): check -contact_axis and -contact_axis_point",
-               NodeName(mesh, p).c_str());
-    pt.n            = n;
-    pt.t            = vt.normalized();
-    pt.speed_factor = speed / r_ref;
-    pt.g0           = (xp - xd).dot(n);
-    PetscCheck(pt.g0 >= -spec.tol, comm, kErrInput,
-               "contact: pad %s lies %g m inside the disc along the disc face's normal: overlapping bodies, or the normal "
-               "of %s points the wrong way",
-               NodeName(mesh, p).c_str(), -(double)pt.g0, spec.disc_set.c_str());
+    PetscCall(SetFrame(comm, mesh, spec, p, pad_n.at(p), xd, n, r_ref, pt));
     set.points.push_back(pt);
   }
   if (!missed.empty()) {

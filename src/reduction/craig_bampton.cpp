@@ -1,4 +1,6 @@
 #include "squeal/reduction/craig_bampton.h"
+#include "internal.h"
+
 #include "squeal/core/interrupt.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
@@ -18,7 +20,7 @@ namespace squeal {
 
 namespace {
 
-using Dense = Eigen::Matrix<PetscReal, Eigen::Dynamic, Eigen::Dynamic>;
+using cb::Dense;
 
 // S = A_IB^T W (nB x n) on every rank, for a sparse A_IB with the row layout of W: each rank adds
 // a_ij W(i, :) to row j of S for the nonzeros of its rows (a few per row, near the interface),
@@ -170,123 +172,6 @@ PetscErrorCode DetectRayleigh(Mat M, Mat K, Mat C, bool *is, PetscReal *a, Petsc
   PetscFunctionReturn(0);
 }
 
-// Psi = -K_II^{-1} K_IB into the first nB columns of W, with a sequential factor F of the whole
-// K_II on every rank: each rank solves a contiguous share of the columns alone (the same
-// sequential solve as on one rank: no distributed solution to scatter), then sends every other
-// rank the rows of its share that rank owns in W, in one all-to-all.
-PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Mat W)
-{
-  MPI_Comm        comm, fcomm;
-  PetscMPIInt     size, rank;
-  PetscInt        nI, nB, nIloc, lda;
-  const PetscInt *rows;
-  PetscFunctionBeginUser;
-  PetscCall(PetscObjectGetComm((PetscObject)W, &comm));
-  PetscCall(PetscObjectGetComm((PetscObject)F, &fcomm));
-  PetscCallMPI(MPI_Comm_size(comm, &size));
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  PetscCall(MatGetSize(Kib, &nI, &nB));
-  PetscCall(MatGetLocalSize(W, &nIloc, nullptr));
-  PetscCall(MatGetOwnershipRanges(W, &rows));
-  std::vector<PetscInt> cols(size + 1, 0); // the columns rank r solves: [cols[r], cols[r + 1])
-  for (PetscMPIInt r = 0; r < size; ++r) cols[r + 1] = cols[r] + nB / size + (r < nB % size ? 1 : 0);
-  const PetscInt c0 = cols[rank], k = cols[rank + 1] - c0;
-
-  MatH X; // nI x k, this rank's columns of Psi, every row
-  PetscCall(MatCreateSeqDense(fcomm, nI, k, nullptr, X.out()));
-  {
-    // (-K_IB)^T, rows c0 .. c0 + k - 1, on this rank alone: MUMPS takes a sparse right-hand side
-    // by columns, i.e. its transpose by rows (MatMatTransposeSolve).
-    MatH KbiT;
-    IS   isr, isc;
-    Mat *sub;
-    PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, KbiT.out()));
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, k, c0, 1, &isr));
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, nI, 0, 1, &isc));
-    PetscCall(MatCreateSubMatrices(KbiT, 1, &isr, &isc, MAT_INITIAL_MATRIX, &sub));
-    PetscCall(ISDestroy(&isr));
-    PetscCall(ISDestroy(&isc));
-    PetscCall(MatScale(sub[0], -1.0));
-    if (k > 0 && sparse_rhs) PetscCall(MatMatTransposeSolve(F, sub[0], X));
-    else if (k > 0) {
-      MatH Bt, B;
-      PetscCall(MatTranspose(sub[0], MAT_INITIAL_MATRIX, Bt.out()));
-      PetscCall(MatConvert(Bt, MATSEQDENSE, MAT_INITIAL_MATRIX, B.out()));
-      PetscCall(MatMatSolve(F, B, X));
-    }
-    PetscCall(MatDestroySubMatrices(1, &sub));
-  }
-
-  // Rank q receives rows [rows[q], rows[q + 1]) of every rank's columns, column by column.
-  std::vector<PetscMPIInt> scnt(size), sdsp(size), rcnt(size), rdsp(size);
-  PetscInt                 soff = 0, roff = 0;
-  for (PetscMPIInt q = 0; q < size; ++q) {
-    PetscCall(PetscMPIIntCast(soff, &sdsp[q]));
-    PetscCall(PetscMPIIntCast(roff, &rdsp[q]));
-    PetscCall(PetscMPIIntCast((rows[q + 1] - rows[q]) * k, &scnt[q]));
-    PetscCall(PetscMPIIntCast(nIloc * (cols[q + 1] - cols[q]), &rcnt[q]));
-    soff += (rows[q + 1] - rows[q]) * k;
-    roff += nIloc * (cols[q + 1] - cols[q]);
-  }
-  std::vector<PetscScalar> sbuf((size_t)soff), rbuf((size_t)roff);
-  {
-    const PetscScalar *x;
-    PetscInt           ldx;
-    PetscCall(MatDenseGetLDA(X, &ldx));
-    PetscCall(MatDenseGetArrayRead(X, &x));
-    for (PetscMPIInt q = 0; q < size; ++q) {
-      const PetscInt m = rows[q + 1] - rows[q];
-      for (PetscInt j = 0; j < k; ++j)
-        std::copy(x + rows[q] + (size_t)j * ldx, x + rows[q] + m + (size_t)j * ldx, sbuf.begin() + sdsp[q] + (size_t)j * m);
-    }
-    PetscCall(MatDenseRestoreArrayRead(X, &x));
-  }
-  X.reset();
-  PetscCallMPI(MPI_Alltoallv(sbuf.data(), scnt.data(), sdsp.data(), MPIU_SCALAR, rbuf.data(), rcnt.data(), rdsp.data(),
-                             MPIU_SCALAR, comm));
-  PetscScalar *w;
-  PetscCall(MatDenseGetLDA(W, &lda));
-  PetscCall(MatDenseGetArray(W, &w)); // read-write: W holds the modes already
-  for (PetscMPIInt r = 0; r < size; ++r)
-    for (PetscInt j = cols[r]; j < cols[r + 1]; ++j)
-      std::copy(rbuf.begin() + rdsp[r] + (size_t)(j - cols[r]) * nIloc, rbuf.begin() + rdsp[r] + (size_t)(j - cols[r] + 1) * nIloc,
-                w + (size_t)j * lda);
-  PetscCall(MatDenseRestoreArray(W, &w));
-  PetscFunctionReturn(0);
-}
-
-// Interface reduction of a Craig-Bampton model (matrices in contact order: point c's x, y, z at
-// 3c .. 3c+2, then the m modes). With E_c = [t_c b_c] (3 x 2), the in-plane interface block
-//   K_pp(2c+a, 2d+b) = E_c(:, a)^T K_r(3c.., 3d..) E_d(:, b)   (normals and modes held at 0), M_pp alike,
-// gives the characteristic constraint modes K_pp Psi = M_pp Psi Lambda, Psi^T M_pp Psi = I; the
-// k lowest replace the 2 n_c in-plane DOFs. T (n2 x n_c + k + m) maps the new coordinates
-// [u_n (one per point), xi (k), eta (m)] to the CB ones: u_xyz(c) = n_c u_n,c + E_c Psi(2c.., :) xi.
-// lam receives all 2 n_c eigenvalues (ascending), so the caller chooses k.
-PetscErrorCode InPlaneModes(MPI_Comm comm, const ContactSet &cs, const Dense &Mp, const Dense &Kp, Dense &Psi,
-                            std::vector<PetscReal> &lam)
-{
-  const PetscInt nc = cs.Size();
-  PetscFunctionBeginUser;
-  Dense Kpp(2 * nc, 2 * nc), Mpp(2 * nc, 2 * nc);
-  for (PetscInt c = 0; c < nc; ++c) {
-    Eigen::Matrix<PetscReal, 3, 2> Ec;
-    Ec << cs.points[c].t, cs.points[c].b;
-    for (PetscInt d = 0; d < nc; ++d) {
-      Eigen::Matrix<PetscReal, 3, 2> Ed;
-      Ed << cs.points[d].t, cs.points[d].b;
-      Kpp.block<2, 2>(2 * c, 2 * d) = Ec.transpose() * Kp.block<3, 3>(3 * c, 3 * d) * Ed;
-      Mpp.block<2, 2>(2 * c, 2 * d) = Ec.transpose() * Mp.block<3, 3>(3 * c, 3 * d) * Ed;
-    }
-  }
-  Eigen::GeneralizedSelfAdjointEigenSolver<Dense> ges;
-  PetscCallCXX(ges.compute(0.5 * (Kpp + Kpp.transpose()), 0.5 * (Mpp + Mpp.transpose())));
-  PetscCheck(ges.info() == Eigen::Success, comm, kErrInput,
-             "interface reduction: the in-plane interface block's eigenproblem failed (M_pp not positive definite?)");
-  Psi = ges.eigenvectors(); // M_pp-normalised, ascending eigenvalues
-  lam.assign(ges.eigenvalues().data(), ges.eigenvalues().data() + 2 * nc);
-  PetscFunctionReturn(0);
-}
-
 // One log stage per phase of the reduction (-log_view), registered once per process.
 struct Stages {
   PetscLogStage factor, modes, constraint, project;
@@ -304,6 +189,175 @@ PetscErrorCode GetStages(Stages *st)
     done = true;
   }
   *st = s;
+  PetscFunctionReturn(0);
+}
+
+// CPU time of the process, all threads (PetscGetCPUTime read ~0 here).
+PetscLogDouble CpuNow() { return (PetscLogDouble)std::clock() / CLOCKS_PER_SEC; }
+
+// The interface in contact order (point c, its nodes, their x, y, z DOFs) and the interior.
+PetscErrorCode PartitionDofs(const Model &full, cb::Partition &p)
+{
+  MPI_Comm comm = full.comm();
+  PetscInt rstart, rend;
+  PetscFunctionBeginUser;
+  PetscCall(MatGetSize(full.K, &p.N, nullptr));
+  PetscCall(MatGetOwnershipRange(full.K, &rstart, &rend));
+  PetscCheck(!full.contacts.HasExplicitColumns(), comm, kErrInput,
+             "reduction: the contact set has explicit column entries (an already reduced model?); Craig-Bampton needs "
+             "node-based contact points, reduce the full model instead");
+  std::vector<PetscInt> iface;
+  for (const ContactPoint &c : full.contacts.points)
+    for (const ContactNode &nd : c.nodes)
+      for (int k = 0; k < 3; ++k) iface.push_back(nd.dofs[k]);
+  p.nB = (PetscInt)iface.size();
+  p.where.assign(p.N, -1);
+  for (PetscInt k = 0; k < p.nB; ++k) {
+    PetscCheck(iface[k] >= 0 && iface[k] < p.N, comm, kErrInput,
+               "reduction: contact DOF %" PetscInt_FMT " is outside the model's %" PetscInt_FMT " DOFs", iface[k], p.N);
+    PetscCheck(p.where[iface[k]] < 0, comm, kErrInput,
+               "reduction: DOF %" PetscInt_FMT " belongs to two contact nodes; the interface must list each DOF once", iface[k]);
+    p.where[iface[k]] = k;
+  }
+  p.nI = p.N - p.nB;
+  PetscCheck(p.nI > 0, comm, kErrInput, "reduction: every DOF is a contact DOF, nothing to reduce (drop -reduce_type)");
+  std::vector<PetscInt> Iloc, Bloc;
+  p.Bsorted = iface;
+  std::sort(p.Bsorted.begin(), p.Bsorted.end());
+  for (PetscInt i = rstart; i < rend; ++i) (p.where[i] < 0 ? Iloc : Bloc).push_back(i);
+  PetscCall(ISCreateGeneral(comm, (PetscInt)Iloc.size(), Iloc.data(), PETSC_COPY_VALUES, p.isI.out()));
+  PetscCall(ISCreateGeneral(comm, (PetscInt)Bloc.size(), Bloc.data(), PETSC_COPY_VALUES, p.isB.out()));
+  PetscFunctionReturn(0);
+}
+
+// W = [Psi Phi] (Psi's first nB columns left for the constraint modes), Phi M_II-normalised, and
+// the orders the projection needs.
+PetscErrorCode CreateBasis(MPI_Comm comm, const cb::Partition &p, const cb::Interior &in, const std::vector<PetscReal> &lam,
+                           const std::vector<PetscInt> &keep, cb::Basis &b)
+{
+  PetscInt nIloc;
+  VecH     x, y;
+  PetscFunctionBeginUser;
+  b.nB = p.nB, b.m = (PetscInt)keep.size(), b.n2 = b.nB + b.m;
+  b.omega2.clear();
+  for (PetscInt k : keep) b.omega2.push_back(lam[k]);
+  b.perm.resize(b.n2);
+  for (PetscInt k = 0; k < b.nB; ++k) b.perm[k] = p.where[p.Bsorted[k]];
+  for (PetscInt k = 0; k < b.m; ++k) b.perm[b.nB + k] = b.nB + k;
+  PetscCall(MatGetLocalSize(in.Kii, &nIloc, nullptr));
+  PetscCall(MatCreateDense(comm, nIloc, PETSC_DECIDE, p.nI, b.n2, nullptr, b.W.out()));
+  PetscCall(MatCreateVecs(in.Kii, x.out(), y.out()));
+  for (PetscInt k = 0; k < b.m; ++k) {
+    Vec       col;
+    PetscReal nrm2;
+    PetscCall(EPSGetEigenvector(in.eps, keep[k], x, nullptr));
+    PetscCall(MatMult(in.Mii, x, y));
+    PetscCall(VecDot(x, y, &nrm2));
+    // Sign fixed by the entry of largest modulus, so that any rank count gives the same basis.
+    PetscReal xmax, xmin;
+    PetscCall(VecMax(x, nullptr, &xmax));
+    PetscCall(VecMin(x, nullptr, &xmin));
+    PetscCall(VecScale(x, (-xmin > xmax ? -1.0 : 1.0) / std::sqrt(PetscRealPart(nrm2))));
+    PetscCall(MatDenseGetColumnVecWrite(b.W, b.nB + k, &col));
+    PetscCall(VecCopy(x, col));
+    PetscCall(MatDenseRestoreColumnVecWrite(b.W, b.nB + k, &col));
+  }
+  PetscFunctionReturn(0);
+}
+
+// A_r = T^T A T in the order [B sorted by global index, modes]:
+//   P = W^T A_II W,  S = A_BI W,  A_r = P + [A_BB + S_B + S_B^T, S_M; S_M^T, 0].
+// For K the projection is known in closed form (Psi^T (K_IB + K_II Psi) = 0, Phi^T K_II Phi =
+// Omega^2): K_r = [K_BB + K_BI Psi, 0; 0, Omega^2], which saves the dense product W^T K_II W.
+PetscErrorCode ProjectMatrix(const cb::Partition &p, const cb::Basis &b, Mat A, bool stiffness, Dense &Ar)
+{
+  MatH           Aii, Aib, G;
+  Dense          Sd, Abb;
+  const PetscInt nB = b.nB, m = b.m;
+  PetscFunctionBeginUser;
+  PetscCall(MatCreateSubMatrix(A, p.isI, p.isB, MAT_INITIAL_MATRIX, Aib.out()));
+  PetscCall(InterfaceTransposeProduct(Aib, b.W, Sd));
+  PetscCall(GatherSubmatrix(A, p.Bsorted, Abb));
+  if (stiffness) {
+    Ar                       = Dense::Zero(b.n2, b.n2);
+    Ar.topLeftCorner(nB, nB) = Abb + 0.5 * (Sd.leftCols(nB) + Sd.leftCols(nB).transpose());
+    for (PetscInt k = 0; k < m; ++k) Ar(nB + k, nB + k) = b.omega2[k];
+  } else {
+    PetscCall(MatCreateSubMatrix(A, p.isI, p.isI, MAT_INITIAL_MATRIX, Aii.out()));
+    PetscCall(MatMatMult(Aii, b.W, MAT_INITIAL_MATRIX, PETSC_DEFAULT, G.out()));
+    PetscCall(SymmetricTransposeProduct(b.W, G, Ar));
+    Ar.topLeftCorner(nB, nB) += Abb + Sd.leftCols(nB) + Sd.leftCols(nB).transpose();
+    Ar.topRightCorner(nB, m) += Sd.rightCols(m);
+    Ar.bottomLeftCorner(m, nB) += Sd.rightCols(m).transpose();
+  }
+  PetscFunctionReturn(0);
+}
+
+// A reduced matrix from the sorted order to contact order.
+Dense Permuted(const cb::Basis &b, const Dense &Ar)
+{
+  Dense Ap(b.n2, b.n2);
+  for (PetscInt i = 0; i < b.n2; ++i)
+    for (PetscInt j = 0; j < b.n2; ++j) Ap(b.perm[i], b.perm[j]) = Ar(i, j);
+  return Ap;
+}
+
+// The reduced matrix in contact order, through the interface reduction T if any (T empty: none).
+PetscErrorCode AssembleReduced(MPI_Comm comm, const cb::Basis &b, const Dense &T, const Dense &Ar, Mat *out)
+{
+  PetscFunctionBeginUser;
+  Dense Ap = Permuted(b, Ar);
+  if (T.size()) {
+    Dense AT;
+    PetscCallCXX(AT.noalias() = Ap * T);
+    PetscCallCXX(Ap.noalias() = T.transpose() * AT);
+  }
+  PetscCall(CreateReducedMat(comm, Ap, out));
+  PetscFunctionReturn(0);
+}
+
+// F_r = T^T F = [F_B + Psi^T F_I; Phi^T F_I] (then through the interface reduction T, if any), with
+// the layout of K_r.
+PetscErrorCode ReducedLoad(const cb::Partition &p, const cb::Basis &b, const Dense &T, Vec F, Mat Kr, Vec *Fr_out)
+{
+  Vec                    FI;
+  VecH                   t;
+  std::vector<PetscReal> Ffull, tw, Fr(b.n2, 0.0);
+  PetscInt               lo, hi;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetSubVector(F, p.isI, &FI));
+  PetscCall(MatCreateVecs(b.W, t.out(), nullptr));
+  PetscCall(MatMultTranspose(b.W, FI, t));
+  PetscCall(VecRestoreSubVector(F, p.isI, &FI));
+  PetscCall(GatherVector(t, true, tw));
+  PetscCall(GatherVector(F, true, Ffull));
+  for (PetscInt k = 0; k < b.nB; ++k) Fr[b.perm[k]] = Ffull[p.Bsorted[k]] + tw[k];
+  for (PetscInt k = 0; k < b.m; ++k) Fr[b.nB + k] = tw[b.nB + k];
+  if (T.size()) {
+    const Eigen::Map<const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>> f(Fr.data(), b.n2);
+    const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>                   g = T.transpose() * f;
+    Fr.assign(g.data(), g.data() + g.size());
+  }
+  PetscCall(MatCreateVecs(Kr, nullptr, Fr_out));
+  PetscCall(VecGetOwnershipRange(*Fr_out, &lo, &hi));
+  for (PetscInt i = lo; i < hi; ++i) PetscCall(VecSetValue(*Fr_out, i, Fr[i], INSERT_VALUES));
+  PetscCall(VecAssemblyBegin(*Fr_out));
+  PetscCall(VecAssemblyEnd(*Fr_out));
+  PetscFunctionReturn(0);
+}
+
+// The contact set follows its DOFs to the first 3 n_c positions; frames and speeds unchanged.
+PetscErrorCode RenumberContacts(MPI_Comm comm, const cb::Partition &p, ContactSet &contacts)
+{
+  PetscInt next = 0;
+  PetscFunctionBeginUser;
+  for (ContactPoint &c : contacts.points)
+    for (ContactNode &nd : c.nodes)
+      for (int k = 0; k < 3; ++k) {
+        PetscCheck(p.where[nd.dofs[k]] == next, comm, PETSC_ERR_PLIB, "reduction: contact DOF %" PetscInt_FMT " missing from the basis",
+                   nd.dofs[k]);
+        nd.dofs[k] = next++;
+      }
   PetscFunctionReturn(0);
 }
 
@@ -348,6 +402,13 @@ PetscErrorCode CraigBampton::SetRedundantFactor(bool on)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode CraigBampton::SetRHSBlock(PetscInt block)
+{
+  PetscFunctionBeginUser;
+  rhs_block_ = block;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CraigBampton::SetInterfaceModes(PetscInt k)
 {
   PetscFunctionBeginUser;
@@ -381,6 +442,10 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             &max_modes_, nullptr));
   PetscCall(PetscOptionsBool("-sparse_rhs", "Constraint modes from the sparse right-hand sides -K_IB (MUMPS ICNTL(20) = 1) instead of a dense block",
                              "CraigBampton", sparse_rhs_, &sparse_rhs_, nullptr));
+  PetscCall(PetscOptionsInt("-rhs_block",
+                            "Constraint modes solved in blocks of this many right-hand sides, a signal obeyed between blocks "
+                            "(0: all in one solve)",
+                            "CraigBampton", rhs_block_, &rhs_block_, nullptr));
   PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
@@ -414,143 +479,102 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
+// The interior blocks, the eigensolver and the one MUMPS Cholesky factorisation of K_II that it
+// shares with the constraint modes: the shift-and-invert shift is 0, so the spectral
+// transformation's operator is K_II itself and its KSP, set up here, is not factorised again
+// inside EPSSolve.
+PetscErrorCode CraigBampton::FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in)
 {
-  MPI_Comm       comm = full.comm();
-  PetscLogDouble t0, t1, t2, t3, t4, cpu[5];
-  PetscInt       N, rstart, rend;
-  Stages         stages{};
-  PetscMPIInt    size;
+  MPI_Comm    comm = full.comm();
+  PetscMPIInt size;
+  ST          st;
+  KSP         ksp;
+  PC          pc, fpc = nullptr; // fpc: the PC that holds the factor (pc itself, or the redundant PC's inner one)
+  PetscBool   isfactor, isredundant;
   PetscFunctionBeginUser;
-  PetscCall(GetStages(&stages));
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  bool redundant = size > 1 && redundant_; // the final choice follows -<prefix>st_pc_type
-  PetscCall(PetscTime(&t0));
-  cpu[0] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC; // process CPU time, all threads (PetscGetCPUTime read ~0 here)
-  info_ = ReductionInfo();
-  PetscCall(MatGetSize(full.K, &N, nullptr));
-  PetscCall(MatGetOwnershipRange(full.K, &rstart, &rend));
-
-  // Interface in contact order: point c, its nodes, their x, y, z DOFs.
-  PetscCheck(!full.contacts.HasExplicitColumns(), comm, kErrInput,
-             "reduction: the contact set has explicit column entries (an already reduced model?); Craig-Bampton needs "
-             "node-based contact points, reduce the full model instead");
-  std::vector<PetscInt> iface;
-  for (const ContactPoint &p : full.contacts.points)
-    for (const ContactNode &nd : p.nodes)
-      for (int k = 0; k < 3; ++k) iface.push_back(nd.dofs[k]);
-  const PetscInt        nB = (PetscInt)iface.size();
-  std::vector<PetscInt> where(N, -1); // full DOF -> position in the interface
-  for (PetscInt k = 0; k < nB; ++k) {
-    PetscCheck(iface[k] >= 0 && iface[k] < N, comm, kErrInput,
-               "reduction: contact DOF %" PetscInt_FMT " is outside the model's %" PetscInt_FMT " DOFs", iface[k], N);
-    PetscCheck(where[iface[k]] < 0, comm, kErrInput,
-               "reduction: DOF %" PetscInt_FMT " belongs to two contact nodes; the interface must list each DOF once", iface[k]);
-    where[iface[k]] = k;
+  PetscCall(MatCreateSubMatrix(full.K, p.isI, p.isI, MAT_INITIAL_MATRIX, in.Kii.out()));
+  PetscCall(MatCreateSubMatrix(full.K, p.isI, p.isB, MAT_INITIAL_MATRIX, in.Kib.out()));
+  PetscCall(MatCreateSubMatrix(full.M, p.isI, p.isI, MAT_INITIAL_MATRIX, in.Mii.out()));
+  PetscCall(EPSCreate(comm, in.eps.out()));
+  PetscCall(EPSSetOptionsPrefix(in.eps, prefix_.c_str()));
+  PetscCall(EPSSetOperators(in.eps, in.Kii, in.Mii));
+  PetscCall(EPSSetProblemType(in.eps, EPS_GHEP));
+  PetscCall(EPSSetType(in.eps, EPSKRYLOVSCHUR));
+  PetscCall(EPSSetTarget(in.eps, 0.0));
+  PetscCall(EPSSetWhichEigenpairs(in.eps, EPS_TARGET_MAGNITUDE));
+  PetscCall(EPSSetTolerances(in.eps, 1e-10, PETSC_DEFAULT));
+  PetscCall(EPSGetST(in.eps, &st));
+  PetscCall(STSetType(st, STSINVERT));
+  PetscCall(STGetKSP(st, &ksp));
+  PetscCall(KSPSetType(ksp, KSPPREONLY));
+  PetscCall(KSPGetPC(ksp, &pc));
+  if (size > 1 && redundant_) { // the final choice follows -<prefix>st_pc_type
+    PetscCall(PCSetType(pc, PCREDUNDANT));
+    PetscCall(PCRedundantSetNumber(pc, size));
+  } else {
+    PetscCall(PCSetType(pc, PCCHOLESKY));
+    PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
   }
-  const PetscInt nI = N - nB;
-  PetscCheck(nI > 0, comm, kErrInput, "reduction: every DOF is a contact DOF, nothing to reduce (drop -reduce_type)");
-  std::vector<PetscInt> Bsorted(iface), Iloc, Bloc;
-  std::sort(Bsorted.begin(), Bsorted.end());
-  for (PetscInt i = rstart; i < rend; ++i) (where[i] < 0 ? Iloc : Bloc).push_back(i);
-  Handle<IS> isI, isB;
-  PetscCall(ISCreateGeneral(comm, (PetscInt)Iloc.size(), Iloc.data(), PETSC_COPY_VALUES, isI.out()));
-  PetscCall(ISCreateGeneral(comm, (PetscInt)Bloc.size(), Bloc.data(), PETSC_COPY_VALUES, isB.out()));
-  info_.N           = N;
-  info_.n_interface = nB;
+  in.nev = nmodes_ > 0 ? nmodes_ : 24;
+  in.nev = PetscMax(1, PetscMin(in.nev, PetscMin(max_modes_, p.nI)));
+  PetscCall(EPSSetDimensions(in.eps, in.nev, PETSC_DEFAULT, PETSC_DEFAULT));
+  PetscCall(EPSSetFromOptions(in.eps));
+  PetscCall(EPSMonitorSet(
+    in.eps,
+    [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
+      return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
+    },
+    nullptr, nullptr));
+  PetscCall(KSPSetOperators(ksp, in.Kii, in.Kii));
+  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &isredundant));
+  fpc = pc;
+  if (isredundant) {
+    // One whole copy of K_II per rank (one subcommunicator of one rank each), factorised by
+    // the same sequential Cholesky as on one rank; its options under -<prefix>st_redundant_.
+    KSP inner;
+    PetscCall(PCRedundantGetKSP(pc, &inner));
+    PetscCall(KSPSetType(inner, KSPPREONLY));
+    PetscCall(KSPGetPC(inner, &fpc));
+    PetscCall(PCSetType(fpc, PCCHOLESKY));
+    PetscCall(PCFactorSetMatSolverType(fpc, MATSOLVERMUMPS));
+  }
+  PetscCall(KSPSetUp(ksp));
+  PetscCall(PetscObjectTypeCompareAny((PetscObject)fpc, &isfactor, PCCHOLESKY, PCLU, ""));
+  PetscCheck(isfactor, comm, kErrInput,
+             "reduction: -%sst_%spc_type must be cholesky or lu: the constraint modes reuse the eigensolver's factorisation of K_II",
+             prefix_.c_str(), isredundant ? "redundant_" : "");
+  if (isredundant) {
+    MPI_Comm    fcomm;
+    PetscMPIInt fsize;
+    PetscCall(PetscObjectGetComm((PetscObject)fpc, &fcomm));
+    PetscCallMPI(MPI_Comm_size(fcomm, &fsize));
+    PetscCheck(fsize == 1, comm, kErrInput,
+               "reduction: -%sst_pc_redundant_number must be the number of ranks (%d): each rank solves its constraint modes alone",
+               prefix_.c_str(), (int)size);
+  }
+  in.redundant = isredundant;
+  PetscCall(PCFactorGetMatrix(fpc, &in.Fct));
+  MatFactorError ferr;
+  PetscCall(MatFactorGetError(in.Fct, &ferr));
+  PetscCheck(ferr == MAT_FACTOR_NOERROR, comm, kErrInput,
+             "reduction: K_II (stiffness with every contact DOF held) cannot be factorised (MUMPS error %d): part of the "
+             "structure is not held by the contact nodes or supports; add supports (e.g. -model_support_kn/-model_support_kt) "
+             "or contact nodes there",
+             (int)ferr);
+  PetscFunctionReturn(0);
+}
 
-  // One MUMPS Cholesky factorisation of K_II serves the eigensolver and the constraint modes: the
-  // shift-and-invert shift is 0, so the spectral transformation's operator is K_II itself and its
-  // KSP, set up here, is not factorised again inside EPSSolve.
-  PetscCall(PetscLogStagePush(stages.factor));
-  MatH Kii, Kib, Mii;
-  PetscCall(MatCreateSubMatrix(full.K, isI, isI, MAT_INITIAL_MATRIX, Kii.out()));
-  PetscCall(MatCreateSubMatrix(full.K, isI, isB, MAT_INITIAL_MATRIX, Kib.out()));
-  PetscCall(MatCreateSubMatrix(full.M, isI, isI, MAT_INITIAL_MATRIX, Mii.out()));
-  EPSH            eps;
-  Mat             Fct; // owned by the ST's PC
-  PetscInt        nev   = 0;
+// Fixed-interface modes of (K_II, M_II) up to the cut-off: lam holds every converged eigenvalue,
+// keep the ones kept (ascending).
+PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in,
+                                                 std::vector<PetscReal> &lam, std::vector<PetscInt> &keep)
+{
   const PetscReal w2max = fmax_ > 0 ? std::pow(2 * PETSC_PI * fmax_, 2) : kInf;
-  {
-    ST        st;
-    KSP       ksp;
-    PC        pc, fpc = nullptr; // fpc: the PC that holds the factor (pc itself, or the redundant PC's inner one)
-    PetscBool isfactor, isredundant;
-    PetscCall(EPSCreate(comm, eps.out()));
-    PetscCall(EPSSetOptionsPrefix(eps, prefix_.c_str()));
-    PetscCall(EPSSetOperators(eps, Kii, Mii));
-    PetscCall(EPSSetProblemType(eps, EPS_GHEP));
-    PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
-    PetscCall(EPSSetTarget(eps, 0.0));
-    PetscCall(EPSSetWhichEigenpairs(eps, EPS_TARGET_MAGNITUDE));
-    PetscCall(EPSSetTolerances(eps, 1e-10, PETSC_DEFAULT));
-    PetscCall(EPSGetST(eps, &st));
-    PetscCall(STSetType(st, STSINVERT));
-    PetscCall(STGetKSP(st, &ksp));
-    PetscCall(KSPSetType(ksp, KSPPREONLY));
-    PetscCall(KSPGetPC(ksp, &pc));
-    if (redundant) {
-      PetscCall(PCSetType(pc, PCREDUNDANT));
-      PetscCall(PCRedundantSetNumber(pc, size));
-    } else {
-      PetscCall(PCSetType(pc, PCCHOLESKY));
-      PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
-    }
-    nev = nmodes_ > 0 ? nmodes_ : 24;
-    nev = PetscMax(1, PetscMin(nev, PetscMin(max_modes_, nI)));
-    PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
-    PetscCall(EPSSetFromOptions(eps));
-    PetscCall(EPSMonitorSet(
-      eps,
-      [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
-        return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
-      },
-      nullptr, nullptr));
-    PetscCall(KSPSetOperators(ksp, Kii, Kii));
-    PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &isredundant));
-    fpc = pc;
-    if (isredundant) {
-      // One whole copy of K_II per rank (one subcommunicator of one rank each), factorised by
-      // the same sequential Cholesky as on one rank; its options under -<prefix>st_redundant_.
-      KSP inner;
-      PetscCall(PCRedundantGetKSP(pc, &inner));
-      PetscCall(KSPSetType(inner, KSPPREONLY));
-      PetscCall(KSPGetPC(inner, &fpc));
-      PetscCall(PCSetType(fpc, PCCHOLESKY));
-      PetscCall(PCFactorSetMatSolverType(fpc, MATSOLVERMUMPS));
-    }
-    PetscCall(KSPSetUp(ksp));
-    PetscCall(PetscObjectTypeCompareAny((PetscObject)fpc, &isfactor, PCCHOLESKY, PCLU, ""));
-    PetscCheck(isfactor, comm, kErrInput,
-               "reduction: -%sst_%spc_type must be cholesky or lu: the constraint modes reuse the eigensolver's factorisation of K_II",
-               prefix_.c_str(), isredundant ? "redundant_" : "");
-    if (isredundant) {
-      MPI_Comm fcomm;
-      PetscMPIInt fsize;
-      PetscCall(PetscObjectGetComm((PetscObject)fpc, &fcomm));
-      PetscCallMPI(MPI_Comm_size(fcomm, &fsize));
-      PetscCheck(fsize == 1, comm, kErrInput,
-                 "reduction: -%sst_pc_redundant_number must be the number of ranks (%d): each rank solves its constraint modes alone",
-                 prefix_.c_str(), (int)size);
-    }
-    redundant = isredundant;
-    PetscCall(PCFactorGetMatrix(fpc, &Fct));
-    MatFactorError ferr;
-    PetscCall(MatFactorGetError(Fct, &ferr));
-    PetscCheck(ferr == MAT_FACTOR_NOERROR, comm, kErrInput,
-               "reduction: K_II (stiffness with every contact DOF held) cannot be factorised (MUMPS error %d): part of the "
-               "structure is not held by the contact nodes or supports; add supports (e.g. -model_support_kn/-model_support_kt) "
-               "or contact nodes there",
-               (int)ferr);
-  }
-  PetscCall(PetscLogStagePop());
-  PetscCall(PetscTime(&t1));
-  cpu[1] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
-
-  // Fixed-interface modes of (K_II, M_II) up to the cut-off.
-  PetscCall(PetscLogStagePush(stages.modes));
-  std::vector<PetscReal> lam;
-  PetscInt               nconv = 0;
+  const PetscInt  nI    = p.nI;
+  PetscInt        nconv = 0, nev = in.nev;
+  PetscFunctionBeginUser;
+  lam.clear();
   // With a cut-off alone, the count of modes below it is the number of negative pivots of
   // K_II - (2 pi fmax)^2 M_II (Sylvester's inertia; one more factorisation): one solve then asks
   // for exactly those, instead of solving again and again with a growing request.
@@ -558,8 +582,8 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   if (fmax_ > 0 && nmodes_ < 0 && count_modes_) {
     MatH     A, F;
     PetscInt nneg = 0;
-    PetscCall(MatDuplicate(Kii, MAT_COPY_VALUES, A.out()));
-    PetscCall(MatAXPY(A, -w2max, Mii, UNKNOWN_NONZERO_PATTERN));
+    PetscCall(MatDuplicate(in.Kii, MAT_COPY_VALUES, A.out()));
+    PetscCall(MatAXPY(A, -w2max, in.Mii, UNKNOWN_NONZERO_PATTERN));
     PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
     MatFactorInfo finfo;
     PetscCall(MatFactorInfoInitialize(&finfo));
@@ -578,17 +602,17 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
                               "; only the lowest %" PetscInt_FMT " are kept: raise -%smax_modes or lower -%sfmax\n",
                               nneg, (double)fmax_, prefix_.c_str(), max_modes_, PetscMin(max_modes_, nI), prefix_.c_str(), prefix_.c_str()));
       nev = PetscMin(nneg, PetscMin(max_modes_, nI));
-      if (nev > 0) PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+      if (nev > 0) PetscCall(EPSSetDimensions(in.eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
     } // else (a mode at the cut-off itself): the growing requests below
   }
   if (nmodes_ != 0 && !(counted && nev == 0)) {
     for (;;) {
-      PetscCall(EPSSolve(eps));
-      PetscCall(EPSGetConverged(eps, &nconv));
+      PetscCall(EPSSolve(in.eps));
+      PetscCall(EPSGetConverged(in.eps, &nconv));
       lam.resize(nconv);
       for (PetscInt i = 0; i < nconv; ++i) {
         PetscScalar kr, ki;
-        PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
+        PetscCall(EPSGetEigenvalue(in.eps, i, &kr, &ki));
         lam[i] = PetscRealPart(kr);
       }
       // With a frequency cut-off, grow the request until a converged mode lies above it. Every
@@ -601,10 +625,11 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
       PetscInt next = 2 * nev;
       if (nconv > 0 && lmax > 0) next = PetscMax(next, (PetscInt)std::ceil(1.25 * nconv * (w2max / lmax)));
       nev = PetscMin(next, PetscMin(max_modes_, nI));
-      PetscCall(EPSSetDimensions(eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+      PetscCall(EPSSetDimensions(in.eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
     }
   }
-  std::vector<PetscInt> keep(nconv);
+  in.nev = nev;
+  keep.resize(nconv);
   std::iota(keep.begin(), keep.end(), 0);
   std::sort(keep.begin(), keep.end(), [&](PetscInt a, PetscInt b) { return lam[a] < lam[b]; });
   while (!keep.empty() && lam[keep.back()] > w2max) keep.pop_back();
@@ -614,9 +639,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
                           "reduction: warning: %" PetscInt_FMT " modes (-%smax_modes) do not reach the cut-off %g Hz; raise "
                           "-%smax_modes\n",
                           (PetscInt)keep.size(), prefix_.c_str(), (double)fmax_, prefix_.c_str()));
-  const PetscInt m  = (PetscInt)keep.size();
-  const PetscInt n2 = nB + m;
-  if (m == 0 && nmodes_ < 0 && nI > 0) {
+  if (keep.empty() && nmodes_ < 0 && nI > 0) {
     char f[32]; // PETSc's %g would print "10."
     std::snprintf(f, sizeof f, "%g", (double)fmax_);
     PetscCall(PetscPrintf(comm,
@@ -625,137 +648,63 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
                           "a static reduction\n",
                           prefix_.c_str(), f, prefix_.c_str(), prefix_.c_str()));
   }
-  info_.n_modes     = m;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
+{
+  MPI_Comm               comm = full.comm();
+  PetscLogDouble         t[5], cpu[5];
+  Stages                 stages{};
+  cb::Partition          part;
+  cb::Interior           in;
+  cb::Basis              basis;
+  std::vector<PetscReal> lam;
+  std::vector<PetscInt>  keep;
+  PetscFunctionBeginUser;
+  PetscCall(GetStages(&stages));
+  PetscCall(PetscTime(&t[0]));
+  cpu[0] = CpuNow();
+  info_ = ReductionInfo();
+  PetscCall(PartitionDofs(full, part));
+  info_.N           = part.N;
+  info_.n_interface = part.nB;
+
+  PetscCall(PetscLogStagePush(stages.factor));
+  PetscCall(FactorInterior(full, part, in));
+  PetscCall(PetscLogStagePop());
+  PetscCall(PetscTime(&t[1]));
+  cpu[1] = CpuNow();
+
+  PetscCall(PetscLogStagePush(stages.modes));
+  PetscCall(FixedInterfaceModes(comm, part, in, lam, keep));
+  info_.n_modes = (PetscInt)keep.size();
   for (PetscInt k : keep) info_.freq.push_back(std::sqrt(PetscMax(lam[k], 0.0)) / (2 * PETSC_PI));
-
-  // W = [Psi Phi] (interior rows), Phi M_II-normalised.
-  MatH     W;
-  PetscInt nIloc;
-  PetscCall(MatGetLocalSize(Kii, &nIloc, nullptr));
-  PetscCall(MatCreateDense(comm, nIloc, PETSC_DECIDE, nI, n2, nullptr, W.out()));
-  {
-    VecH x, y;
-    PetscCall(MatCreateVecs(Kii, x.out(), y.out()));
-    for (PetscInt k = 0; k < m; ++k) {
-      Vec       col;
-      PetscReal nrm2;
-      PetscCall(EPSGetEigenvector(eps, keep[k], x, nullptr));
-      PetscCall(MatMult(Mii, x, y));
-      PetscCall(VecDot(x, y, &nrm2));
-      // Sign fixed by the entry of largest modulus, so that any rank count gives the same basis.
-      PetscReal xmax, xmin;
-      PetscCall(VecMax(x, nullptr, &xmax));
-      PetscCall(VecMin(x, nullptr, &xmin));
-      PetscCall(VecScale(x, (-xmin > xmax ? -1.0 : 1.0) / std::sqrt(PetscRealPart(nrm2))));
-      PetscCall(MatDenseGetColumnVecWrite(W, nB + k, &col));
-      PetscCall(VecCopy(x, col));
-      PetscCall(MatDenseRestoreColumnVecWrite(W, nB + k, &col));
-    }
-  }
+  PetscCall(CreateBasis(comm, part, in, lam, keep, basis));
   PetscCall(PetscLogStagePop());
-  PetscCall(PetscTime(&t2));
-  cpu[2] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
+  PetscCall(PetscTime(&t[2]));
+  cpu[2] = CpuNow();
 
-  // Constraint modes Psi = -K_II^{-1} K_IB: nB right-hand sides in one MatMatSolve, written straight
-  // into the first nB columns of W (no second N x nB copy).
+  // Constraint modes Psi = -K_II^{-1} K_IB: nB right-hand sides in blocks of -reduce_rhs_block
+  // (a signal is obeyed between blocks), written straight into the first nB columns of W (no
+  // second N x nB copy).
   PetscCall(PetscLogStagePush(stages.constraint));
-  {
-    MatH      R;
-    Mat       Wpsi;
-    PetscReal nrm;
-    if (redundant) PetscCall(RedundantConstraintModes(Fct, Kib, sparse_rhs_, W));
-    PetscCall(MatDenseGetSubMatrix(W, PETSC_DECIDE, PETSC_DECIDE, 0, nB, &Wpsi));
-    if (redundant) {
-      // Solved above, each rank its own columns.
-    } else if (sparse_rhs_) {
-      // -K_IB as a sparse right-hand side (MUMPS ICNTL(20) = 1): the forward substitution
-      // prunes the elimination tree to the paths its few nonzero rows reach. MUMPS takes it
-      // centralised and transposed, so (-K_IB)^T is gathered on rank 0 (rows and columns).
-      MatH        KbiT;
-      IS          rows, cols;
-      PetscMPIInt rank;
-      PetscCallMPI(MPI_Comm_rank(comm, &rank));
-      PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, KbiT.out()));
-      PetscCall(ISCreateStride(comm, rank == 0 ? nB : 0, 0, 1, &rows));
-      PetscCall(ISCreateStride(comm, rank == 0 ? nI : 0, 0, 1, &cols));
-      PetscCall(MatCreateSubMatrix(KbiT, rows, cols, MAT_INITIAL_MATRIX, R.out()));
-      PetscCall(ISDestroy(&rows));
-      PetscCall(ISDestroy(&cols));
-      PetscCall(MatScale(R, -1.0));
-      PetscCall(MatMatTransposeSolve(Fct, R, Wpsi));
-    } else {
-      PetscCall(MatConvert(Kib, MATDENSE, MAT_INITIAL_MATRIX, R.out()));
-      PetscCall(MatScale(R, -1.0));
-      PetscCall(MatMatSolve(Fct, R, Wpsi));
-    }
-    PetscCall(MatNorm(Wpsi, NORM_FROBENIUS, &nrm));
-    PetscCall(MatDenseRestoreSubMatrix(W, &Wpsi));
-    PetscCheck(!PetscIsInfOrNanReal(nrm) && nrm < 1e12 * std::sqrt((PetscReal)nB), comm, kErrInput,
-               "reduction: K_II is singular or nearly so (constraint modes of norm %g): part of the structure is not held by "
-               "the contact nodes or supports; add supports (e.g. -model_support_kn/-model_support_kt)",
-               (double)nrm);
-  }
-  PetscCall(MatAssemblyBegin(W, MAT_FINAL_ASSEMBLY));
-  PetscCall(MatAssemblyEnd(W, MAT_FINAL_ASSEMBLY));
-  eps.reset();
+  PetscCall(cb::ConstraintModes(comm, in.Fct, in.Kib, in.redundant, sparse_rhs_, rhs_block_, basis.W));
+  PetscCall(MatAssemblyBegin(basis.W, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(basis.W, MAT_FINAL_ASSEMBLY));
+  in.eps.reset(); // and the factor with it, before the dense products
   PetscCall(PetscLogStagePop());
-  // One solve with nB right-hand sides cannot be polled inside: a signal is obeyed here, before the projection.
+  // After the last block: a signal is obeyed before the projection.
   PetscCall(InterruptPoint(comm, "the Craig-Bampton reduction (after its constraint modes)"));
-  PetscCall(PetscTime(&t3));
-  cpu[3] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
-  PetscCall(PetscLogStagePush(stages.project));
+  PetscCall(PetscTime(&t[3]));
+  cpu[3] = CpuNow();
 
-  // A_r = T^T A T in the order [B sorted by global index, modes], then permuted to contact order:
-  //   P = W^T A_II W,  S = A_BI W,  A_r = P + [A_BB + S_B + S_B^T, S_M; S_M^T, 0].
-  std::vector<PetscInt> perm(n2); // reduced position (contact order) of sorted position
-  for (PetscInt k = 0; k < nB; ++k) perm[k] = where[Bsorted[k]];
-  for (PetscInt k = 0; k < m; ++k) perm[nB + k] = nB + k;
-  // For K the projection is known in closed form (Psi^T (K_IB + K_II Psi) = 0, Phi^T K_II Phi =
-  // Omega^2): K_r = [K_BB + K_BI Psi, 0; 0, Omega^2], which saves the dense product W^T K_II W.
-  auto project = [&](Mat A, bool stiffness, Dense &Ar) -> PetscErrorCode {
-    MatH  Aii, Aib, G;
-    Dense Sd, Abb;
-    PetscFunctionBeginUser;
-    PetscCall(MatCreateSubMatrix(A, isI, isB, MAT_INITIAL_MATRIX, Aib.out()));
-    PetscCall(InterfaceTransposeProduct(Aib, W, Sd));
-    PetscCall(GatherSubmatrix(A, Bsorted, Abb));
-    if (stiffness) {
-      Ar                       = Dense::Zero(n2, n2);
-      Ar.topLeftCorner(nB, nB) = Abb + 0.5 * (Sd.leftCols(nB) + Sd.leftCols(nB).transpose());
-      for (PetscInt k = 0; k < m; ++k) Ar(nB + k, nB + k) = lam[keep[k]];
-    } else {
-      PetscCall(MatCreateSubMatrix(A, isI, isI, MAT_INITIAL_MATRIX, Aii.out()));
-      PetscCall(MatMatMult(Aii, W, MAT_INITIAL_MATRIX, PETSC_DEFAULT, G.out()));
-      PetscCall(SymmetricTransposeProduct(W, G, Ar));
-      Ar.topLeftCorner(nB, nB) += Abb + Sd.leftCols(nB) + Sd.leftCols(nB).transpose();
-      Ar.topRightCorner(nB, m) += Sd.rightCols(m);
-      Ar.bottomLeftCorner(m, nB) += Sd.rightCols(m).transpose();
-    }
-    PetscFunctionReturn(0);
-  };
-  auto permute = [&](const Dense &Ar) {
-    Dense Ap(n2, n2);
-    for (PetscInt i = 0; i < n2; ++i)
-      for (PetscInt j = 0; j < n2; ++j) Ap(perm[i], perm[j]) = Ar(i, j);
-    return Ap;
-  };
+  PetscCall(PetscLogStagePush(stages.project));
   Dense T; // interface reduction: n2 x (n_c + k + m), CB coordinates from the new ones; empty: none
-  auto  finish = [&](const Dense &Ar, Mat *out) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    Dense Ap = permute(Ar);
-    if (T.size()) {
-      Dense AT;
-      PetscCallCXX(AT.noalias() = Ap * T);
-      PetscCallCXX(Ap.noalias() = T.transpose() * AT);
-    }
-    PetscCall(CreateReducedMat(comm, Ap, out));
-    PetscFunctionReturn(0);
-  };
-  const PetscInt nc = full.contacts.Size();
   {
     Dense Mr, Kr, Cr;
-    PetscCall(project(full.M, false, Mr));
-    PetscCall(project(full.K, true, Kr));
+    PetscCall(ProjectMatrix(part, basis, full.M, false, Mr));
+    PetscCall(ProjectMatrix(part, basis, full.K, true, Kr));
     // Rayleigh damping C = a M + b K projects to a M_r + b K_r exactly (the projection is linear),
     // which saves the dense product W^T C_II W; any other C is projected like M.
     PetscReal ray_a = 0, ray_b = 0;
@@ -763,104 +712,22 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     if (full.C && rayleigh_) PetscCall(DetectRayleigh(full.M, full.K, full.C, &rayleigh, &ray_a, &ray_b));
     info_.rayleigh = rayleigh;
     if (full.C && rayleigh) Cr = ray_a * Mr + ray_b * Kr;
-    else if (full.C) PetscCall(project(full.C, false, Cr));
-    if (iface_modes_ >= 0 || iface_fmax_ > 0) {
-      const std::string pre = OptionName(prefix_.c_str(), "");
-      for (PetscInt c = 0; c < nc; ++c)
-        PetscCheck(full.contacts.points[c].nodes.size() == 1, comm, kErrInput,
-                   "interface reduction: contact %" PetscInt_FMT " has %zu nodes; %sinterface_modes needs one node per contact point "
-                   "(drop the option)", c, full.contacts.points[c].nodes.size(), pre.c_str());
-      PetscCheck(iface_modes_ <= 2 * nc, comm, kErrInput,
-                 "%sinterface_modes %" PetscInt_FMT " exceeds the %" PetscInt_FMT " in-plane interface DOFs (2 x %" PetscInt_FMT
-                 " contact points): give at most %" PetscInt_FMT, pre.c_str(), iface_modes_, 2 * nc, nc, 2 * nc);
-      Dense                  Psi;
-      std::vector<PetscReal> lam;
-      PetscCall(InPlaneModes(comm, full.contacts, permute(Mr), permute(Kr), Psi, lam));
-      PetscInt k = 2 * nc;
-      if (iface_fmax_ > 0) {
-        const PetscReal w2 = std::pow(2 * PETSC_PI * iface_fmax_, 2);
-        k = (PetscInt)(std::upper_bound(lam.begin(), lam.end(), w2) - lam.begin());
-        PetscCheck(k > 0, comm, kErrInput,
-                   "%sinterface_fmax %g Hz keeps no in-plane interface mode (the lowest is at %g Hz): raise it", pre.c_str(),
-                   (double)iface_fmax_, std::sqrt(std::max(lam[0], (PetscReal)0)) / (2 * PETSC_PI));
-      }
-      if (iface_modes_ >= 0) k = std::min(k, iface_modes_);
-      PetscCheck(k > 0, comm, kErrInput,
-                 "%sinterface_modes 0 keeps no in-plane interface mode: give k >= 1, or -1 (default) for no interface reduction",
-                 pre.c_str());
-      T = Dense::Zero(n2, nc + k + m);
-      for (PetscInt c = 0; c < nc; ++c) {
-        const ContactPoint &p = full.contacts.points[c];
-        T.block<3, 1>(3 * c, c) = p.n;
-        for (PetscInt j = 0; j < k; ++j) T.block<3, 1>(3 * c, nc + j) = p.t * Psi(2 * c, j) + p.b * Psi(2 * c + 1, j);
-      }
-      for (PetscInt q = 0; q < m; ++q) T(nB + q, nc + k + q) = 1;
-      info_.n_normal = nc;
-      info_.n_inplane_modes = k;
-      info_.inplane_freq.clear();
-      for (PetscInt j = 0; j < k; ++j) info_.inplane_freq.push_back(std::sqrt(std::max(lam[j], (PetscReal)0)) / (2 * PETSC_PI));
-      red.contacts = full.contacts;
-      for (PetscInt c = 0; c < nc; ++c) {
-        ContactPoint   &p = red.contacts.points[c];
-        const PetscReal w = p.nodes[0].weight;
-        p.nodes.clear();
-        for (ColumnEntries &col : p.cols) col.clear();
-        // h_n selects the normal coordinate: the pivot elimination and the node-wise unilateral
-        // law stay exact; h_t, h_b are rows of the in-plane mode matrix, dense over xi.
-        p.cols[kN].emplace_back(c, w);
-        for (PetscInt j = 0; j < k; ++j) {
-          p.cols[kT].emplace_back(nc + j, w * Psi(2 * c, j));
-          p.cols[kB].emplace_back(nc + j, w * Psi(2 * c + 1, j));
-        }
-      }
-    }
-    PetscCall(finish(Mr, red.M.out()));
-    PetscCall(finish(Kr, red.K.out()));
-    if (full.C) PetscCall(finish(Cr, red.C.out()));
+    else if (full.C) PetscCall(ProjectMatrix(part, basis, full.C, false, Cr));
+    if (iface_modes_ >= 0 || iface_fmax_ > 0)
+      PetscCall(cb::InterfaceReduction(comm, full.contacts, Permuted(basis, Mr), Permuted(basis, Kr), iface_modes_, iface_fmax_,
+                                       prefix_.c_str(), basis.m, T, red.contacts, info_));
+    PetscCall(AssembleReduced(comm, basis, T, Mr, red.M.out()));
+    PetscCall(AssembleReduced(comm, basis, T, Kr, red.K.out()));
+    if (full.C) PetscCall(AssembleReduced(comm, basis, T, Cr, red.C.out()));
     else red.C.reset();
   }
-
-  // F_r = T^T F = [F_B + Psi^T F_I; Phi^T F_I].
-  {
-    Vec                    FI;
-    VecH                   t;
-    std::vector<PetscReal> Ffull, tw, Fr(n2, 0.0);
-    PetscCall(VecGetSubVector(full.F, isI, &FI));
-    PetscCall(MatCreateVecs(W, t.out(), nullptr));
-    PetscCall(MatMultTranspose(W, FI, t));
-    PetscCall(VecRestoreSubVector(full.F, isI, &FI));
-    PetscCall(GatherVector(t, true, tw));
-    PetscCall(GatherVector(full.F, true, Ffull));
-    for (PetscInt k = 0; k < nB; ++k) Fr[perm[k]] = Ffull[Bsorted[k]] + tw[k];
-    for (PetscInt k = 0; k < m; ++k) Fr[nB + k] = tw[nB + k];
-    if (T.size()) {
-      const Eigen::Map<const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>> f(Fr.data(), n2);
-      const Eigen::Matrix<PetscReal, Eigen::Dynamic, 1>                   g = T.transpose() * f;
-      Fr.assign(g.data(), g.data() + g.size());
-    }
-    PetscCall(MatCreateVecs(red.K, nullptr, red.F.out()));
-    PetscInt lo, hi;
-    PetscCall(VecGetOwnershipRange(red.F, &lo, &hi));
-    for (PetscInt i = lo; i < hi; ++i) PetscCall(VecSetValue(red.F, i, Fr[i], INSERT_VALUES));
-    PetscCall(VecAssemblyBegin(red.F));
-    PetscCall(VecAssemblyEnd(red.F));
-  }
-
-  // The contact set follows its DOFs to the first 3 n_c positions; frames and speeds unchanged
-  // (with interface reduction it was set above).
-  if (!T.size()) {
+  PetscCall(ReducedLoad(part, basis, T, full.F, red.K, red.F.out()));
+  if (!T.size()) { // with interface reduction the contact set was made above
     red.contacts = full.contacts;
-    PetscInt next = 0;
-    for (ContactPoint &p : red.contacts.points)
-      for (ContactNode &nd : p.nodes)
-        for (int k = 0; k < 3; ++k) {
-          PetscCheck(where[nd.dofs[k]] == next, comm, PETSC_ERR_PLIB, "reduction: contact DOF %" PetscInt_FMT " missing from the basis",
-                     nd.dofs[k]);
-          nd.dofs[k] = next++;
-        }
+    PetscCall(RenumberContacts(comm, part, red.contacts));
   }
   char name[128];
-  PetscCall(PetscSNPrintf(name, sizeof(name), " + CB(%" PetscInt_FMT " + %" PetscInt_FMT ")", nB, m));
+  PetscCall(PetscSNPrintf(name, sizeof(name), " + CB(%" PetscInt_FMT " + %" PetscInt_FMT ")", basis.nB, basis.m));
   red.name = full.name + name;
   if (T.size()) {
     PetscCall(PetscSNPrintf(name, sizeof(name), " + IR(%" PetscInt_FMT " normal + %" PetscInt_FMT " in-plane)", info_.n_normal,
@@ -869,13 +736,13 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   }
   PetscCall(red.Validate());
   PetscCall(PetscLogStagePop());
-  PetscCall(PetscTime(&t4));
-  cpu[4] = (PetscLogDouble)std::clock() / CLOCKS_PER_SEC;
-  info_.time_factor  = t1 - t0;
-  info_.time_modes   = t2 - t1;
-  info_.time_static  = t3 - t2;
-  info_.time_project = t4 - t3;
-  info_.time_total   = t4 - t0;
+  PetscCall(PetscTime(&t[4]));
+  cpu[4] = CpuNow();
+  info_.time_factor  = t[1] - t[0];
+  info_.time_modes   = t[2] - t[1];
+  info_.time_static  = t[3] - t[2];
+  info_.time_project = t[4] - t[3];
+  info_.time_total   = t[4] - t[0];
   PetscLogDouble dcpu[4] = {cpu[1] - cpu[0], cpu[2] - cpu[1], cpu[3] - cpu[2], cpu[4] - cpu[3]};
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, dcpu, 4, MPI_DOUBLE, MPI_MAX, comm));
   info_.cpu_factor = dcpu[0], info_.cpu_modes = dcpu[1], info_.cpu_static = dcpu[2], info_.cpu_project = dcpu[3];

@@ -1,12 +1,16 @@
 #!/usr/bin/env python3
 """A signal inside a solver's own loop (an eigensolve, a reduction) is obeyed (issue 20, item 1).
 
-    check_interrupt_anywhere.py --output F --after REGEX [--wait S] [--signal INT|TERM] [--within S] -- cmd...
+    check_interrupt_anywhere.py --output F --after REGEX [--wait S] [--signal INT|TERM] [--within S]
+                                [--where REGEX] [--results interrupted|absent] -- cmd...
 
 Starts cmd, waits for a stdout line matching REGEX and S more seconds (inside the long solve),
 sends the signal and checks: the run stops within --within seconds (default 3: Open MPI's mpiexec
 itself takes one second to pass SIGTERM on), exit code in 1..127, stderr says
-"interrupted by SIG... during", and F exists with the root status "interrupted (SIG...".
+"interrupted by SIG... during" (followed by a match of --where, if given: the place the signal
+must be obeyed at), and F exists with the root status "interrupted (SIG...". With --results absent
+(a signal while the model is built, e.g. during its reduction, before any analysis opens F): no F
+is left behind instead.
 """
 import os
 import re
@@ -24,6 +28,8 @@ def main(argv):
     args = dict(zip(opts[0::2], opts[1::2]))
     out, pattern = args["--output"], re.compile(args["--after"])
     wait, within = float(args.get("--wait", "1")), float(args.get("--within", "3"))
+    where = args.get("--where", "")
+    absent = args.get("--results", "interrupted") == "absent"
     sig = signal.SIGTERM if args.get("--signal", "TERM") == "TERM" else signal.SIGINT
     name = "SIGTERM" if sig == signal.SIGTERM else "SIGINT"
     if os.path.exists(out):
@@ -47,17 +53,20 @@ def main(argv):
         (running, f"still running {wait} s after /{pattern.pattern}/"),
         (dt <= within, f"stopped {dt:.2f} s after {name} (<= {within} s)"),
         (0 < p.returncode < 128, f"exit code {p.returncode} in 1..127"),
-        (re.search(r"^squeal: error: interrupted by " + name + " during", err, re.M) is not None,
-         f"stderr says 'interrupted by {name} during'"),
-        (out in err, "the message names the results file"),
+        (re.search(r"^squeal: error: interrupted by " + name + " during " + where, err, re.M) is not None,
+         f"stderr says 'interrupted by {name} during {where}'"),
     ]
-    if os.path.exists(out):
+    if absent:
+        checks.append((not os.path.exists(out), f"no {out} left behind"))
+    elif os.path.exists(out):
         with h5py.File(out, "r") as f:
             s = f.attrs["status"]
             s = s.decode() if isinstance(s, bytes) else str(s)
         checks.append((s.startswith("interrupted (" + name), f"root status '{s}'"))
     else:
         checks.append((False, f"{out} exists"))
+    if not absent:
+        checks.append((out in err, "the message names the results file"))
     bad = 0
     for good, what in checks:
         print(("ok:   " if good else "FAIL: ") + what)

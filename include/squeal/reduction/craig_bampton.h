@@ -6,8 +6,9 @@
 //   fixed-interface modes  K_II Phi = M_II Phi Omega^2,  Phi^T M_II Phi = I,  the m lowest
 //                          (SLEPc EPS, GHEP, Krylov-Schur, shift-and-invert with a direct solver)
 //                          with f <= fmax (-reduce_fmax) and/or the first nmodes (-reduce_nmodes);
-//   constraint modes       Psi = -K_II^{-1} K_IB  (one factorisation of K_II, MatMatSolve on the
-//                          dense block of 3 n_c right-hand sides);
+//   constraint modes       Psi = -K_II^{-1} K_IB  (one factorisation of K_II, multi-RHS solves on
+//                          blocks of the 3 n_c right-hand sides, -reduce_rhs_block; a signal
+//                          is obeyed between blocks);
 //   T = [ I_BB   0  ]      q = T [u_B; eta],   A_r = T^T A T for A = M, C, K,  F_r = T^T F.
 //       [ Psi   Phi ]
 // The reduced model has 3 n_c + m DOFs: the interface DOFs first, in contact order, so the contact
@@ -39,7 +40,7 @@
 // contact problem of a time step still has 3 n_c unknowns: the Delassus matrix keeps its size,
 // but its in-plane block has rank <= k. One node (any weight) per point only.
 // Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
-// -reduce_redundant, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
+// -reduce_redundant, -reduce_rhs_block, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
 // (e.g. -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves; with
 // -reduce_redundant on several ranks the factor's options are -reduce_st_redundant_mat_mumps_*).
 #pragma once
@@ -51,6 +52,11 @@
 #include <vector>
 
 namespace squeal {
+
+namespace cb { // the steps' data (src/reduction/internal.h)
+struct Partition;
+struct Interior;
+} // namespace cb
 
 struct ReductionInfo {
   PetscInt               N = 0, n_interface = 0, n_modes = 0;
@@ -79,6 +85,10 @@ public:
   // true (default): on several ranks every rank factorises the whole K_II and solves its share of
   // the constraint modes alone; false: one distributed MUMPS factorisation and solve (-reduce_redundant).
   PetscErrorCode SetRedundantFactor(bool on);
+  // The constraint modes are solved in blocks of this many right-hand sides, with an interrupt
+  // poll between blocks (<= 0: all in one solve; -reduce_rhs_block). The factor is the same:
+  // only the right-hand side is split, and the modes agree to round-off.
+  PetscErrorCode SetRHSBlock(PetscInt block);
   // Interface reduction: keep the k lowest in-plane characteristic constraint modes (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
   // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
@@ -93,6 +103,11 @@ public:
   const ReductionInfo &Info() const { return info_; }
 
 private:
+  // Steps of Reduce that read the options.
+  PetscErrorCode FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in);
+  PetscErrorCode FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in, std::vector<PetscReal> &lam,
+                                     std::vector<PetscInt> &keep);
+
   MPI_Comm      comm_;
   std::string   prefix_ = "reduce_";
   PetscReal     fmax_   = 0;
@@ -103,6 +118,7 @@ private:
   PetscBool     sparse_rhs_ = PETSC_TRUE;
   PetscBool     count_modes_ = PETSC_TRUE;
   PetscBool     redundant_   = PETSC_TRUE;
+  PetscInt      rhs_block_   = 32;
   PetscInt      iface_modes_ = -1;
   PetscReal     iface_fmax_  = 0;
   ReductionInfo info_;

@@ -1,0 +1,57 @@
+// The steps of the Craig-Bampton reduction (include/squeal/reduction/craig_bampton.h) and the
+// data they hand on, shared by its source files: craig_bampton.cpp (options, partition,
+// factorisation, fixed-interface modes, projection, assembly), constraint_modes.cpp and
+// interface_reduction.cpp. Not installed.
+#pragma once
+
+#include "squeal/core/handle.h"
+#include "squeal/model/model.h"
+#include "squeal/reduction/craig_bampton.h"
+
+#include <Eigen/Dense>
+
+#include <vector>
+
+namespace squeal::cb {
+
+using Dense = Eigen::Matrix<PetscReal, Eigen::Dynamic, Eigen::Dynamic>;
+
+// The interface B (every translational DOF of every contact node, in contact order) and the
+// interior I (the rest) of the full model.
+struct Partition {
+  PetscInt              N = 0, nB = 0, nI = 0;
+  std::vector<PetscInt> where;   // full DOF -> position in the interface (contact order); -1: interior
+  std::vector<PetscInt> Bsorted; // the interface DOFs, ascending
+  Handle<IS>            isI, isB; // this rank's interior and interface rows
+};
+
+// The interior blocks and the one factorisation of K_II that the eigensolver (shift-and-invert
+// at 0) and the constraint modes share.
+struct Interior {
+  MatH     Kii, Kib, Mii;
+  EPSH     eps;
+  Mat      Fct       = nullptr; // owned by the ST's PC
+  bool     redundant = false;   // a sequential factor of the whole K_II on every rank
+  PetscInt nev       = 0;       // modes asked of the eigensolver
+};
+
+// W = [Psi Phi] (interior rows, N_I x (nB + m)) and the sizes and orders of the reduced model.
+struct Basis {
+  MatH                   W;
+  PetscInt               nB = 0, m = 0, n2 = 0;
+  std::vector<PetscReal> omega2; // Phi^T K_II Phi (rad^2/s^2), the m kept eigenvalues
+  std::vector<PetscInt>  perm;   // reduced position (contact order) of each sorted position [Bsorted, modes]
+};
+
+// Psi = -K_II^{-1} K_IB into the first nB columns of W, in blocks of `block` right-hand sides
+// (<= 0: one solve) with an interrupt poll between blocks; fails on a singular K_II.
+PetscErrorCode ConstraintModes(MPI_Comm comm, Mat F, Mat Kib, bool redundant, PetscBool sparse_rhs, PetscInt block, Mat W);
+
+// Interface reduction of the Craig-Bampton matrices Mp, Kp (contact order): T (n2 x (n_c + k + m))
+// maps [u_n, xi, eta] to the CB coordinates, k from k_max (< 0: no count limit) and fmax (Hz; <= 0:
+// none); contacts receives the reduced contact set, info the counts and in-plane frequencies.
+PetscErrorCode InterfaceReduction(MPI_Comm comm, const ContactSet &full, const Dense &Mp, const Dense &Kp, PetscInt k_max,
+                                  PetscReal fmax, const char *prefix, PetscInt m, Dense &T, ContactSet &contacts,
+                                  ReductionInfo &info);
+
+} // namespace squeal::cb
