@@ -1,6 +1,6 @@
-// The bookkeeping of a transient run (TransientAnalysis::Run, transient.cpp): the energy ledger,
-// the contact statuses and the records on rank 0. Shared by transient.cpp and transient_ledger.cpp;
-// not installed.
+// The bookkeeping of a transient run (TransientAnalysis::Run, transient.cpp): the energy ledger and
+// the records on rank 0 (the points' statuses in them set by Run). Shared by transient.cpp and
+// transient_ledger.cpp; not installed.
 //
 // Two paths. One rank: the state lives in arrays of Run that the integrator updates in place, and
 // the ledger and the records read them with no PETSc call per step (the dense ledger, with loops
