@@ -1,5 +1,5 @@
 #include "squeal/integration/transient.h"
-#include "squeal/core/inf.h"
+#include "transient_ledger.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
@@ -79,259 +79,28 @@ PetscErrorCode SetFromArray(Vec v, const std::vector<PetscReal> &a)
   PetscFunctionReturn(0);
 }
 
-// Loops of compile-time length unrolled in full: GCC's -O2 keeps a 3-iteration loop, at several
-// times the instructions of its body on 3 x 3 data (run-time lengths are unrolled in blocks).
-#if defined(__clang__)
-  #define SQUEAL_UNROLL _Pragma("clang loop unroll_count(16)")
-#elif defined(__GNUC__)
-  #define SQUEAL_UNROLL _Pragma("GCC unroll 16")
-#else
-  #define SQUEAL_UNROLL
-#endif
-
-// The energy bookkeeping of a run (see the header): the works after every step, the energies at
-// the records. The sums are this rank's parts; Run reduces them over the ranks only where a record
-// or a monitor line needs them, so that no step makes a collective call. With ub = (U1 - U0) / h:
-//   W_damping += h ub^T C ub,  W_reactions += h ub^T H r,  E = dU^T M dU / 2 + U^T K U / 2,
-//   W_load = F^T (U - U_start), the sum of the steps' h ub^T F (a constant F: it telescopes).
-class Ledger {
-public:
-  virtual ~Ledger() = default;
-  // Adds the works of the step that just ended (previous state to the current one, reactions r:
-  // 3 n_c local values, the same on every rank).
-  virtual PetscErrorCode Work(const Eigen::VectorXd &r) = 0;
-  // This rank's parts of E_kinetic, E_elastic, W_damping, W_reactions, W_load at the current state.
-  virtual PetscErrorCode Totals(PetscReal s[5]) = 0;
-  // One rank: the state (U, dU: N values each, from the arrays of Run) and r (3 n_c) into a record.
-  virtual void Copy(const PetscReal *u, const PetscReal *du, const Eigen::VectorXd &r, PetscReal *U, PetscReal *V, PetscReal *R)
-  {
-    std::copy_n(u, n_, U);
-    std::copy_n(du, n_, V);
-    std::copy_n(r.data(), r.size(), R);
-  }
-
-protected:
-  PetscReal damping_ = 0, reactions_ = 0; // cumulative works, this rank's part (J)
-  PetscInt n_ = 0;
-};
-
-// One rank, dense back end, the sizes the step kernel is compiled for (integration/step_kernel.h):
-// the state lives in arrays that the integrator updates in place (Vecs over them, see Run), and the
-// bookkeeping reads them as a hand-written loop would, with dense copies of M, C, K (row-major), F
-// and H^T and loops of compile-time length: no PETSc call per step. Products row by row and sums
-// in index order, as PETSc's MatMult and VecDot (round-off apart: FMA). Any other model takes
-// VecLedger: dense N x N products per step cost far more than sparse ones for larger N (a 180-DOF
-// chain's transient took 12.4 s against 5.1 s).
-template <int N, int NC>
-class DenseLedger final : public Ledger {
-  static constexpr int M = NC == Eigen::Dynamic ? Eigen::Dynamic : 3 * NC;
-  using MatN             = Eigen::Matrix<PetscReal, N, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
-  using MatH             = Eigen::Matrix<PetscReal, M, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
-  using VecN             = Eigen::Matrix<PetscReal, N, 1>;
-
-public:
-  DenseLedger(const Model &model, const PetscReal *u, const PetscReal *du, PetscReal h)
-    : nc_(model.contacts.Size()), h_(h), damped_(model.HasDamping()), u_(u), du_(du)
-  {
-    n_ = model.Size();
-    M_ = DenseOf(model.M);
-    C_ = damped_ ? DenseOf(model.C) : MatN::Zero(n_, n_);
-    K_ = DenseOf(model.K);
-    Ht_.setZero(3 * nc_, n_);
-    for (PetscInt c = 0; c < nc_; ++c)
-      for (int d = 0; d < 3; ++d) model.contacts.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) { Ht_(3 * c + d, j) += v; });
-    F_.resize(n_);
-    const PetscScalar *f;
-    PetscCallAbort(PETSC_COMM_SELF, VecGetArrayRead(model.F, &f));
-    for (PetscInt i = 0; i < n_; ++i) F_[i] = PetscRealPart(f[i]);
-    PetscCallAbort(PETSC_COMM_SELF, VecRestoreArrayRead(model.F, &f));
-    prev_  = Eigen::Map<const VecN>(u_, n_);
-    start_ = prev_;
-    dq_.resize(n_);
-  }
-
-  PetscErrorCode Work(const Eigen::VectorXd &r) override
-  {
-    const PetscInt n = Size(), m = 3 * NcSize();
-    VecN           dq_l;
-    PetscReal     *dq = N == Eigen::Dynamic ? dq_.data() : dq_l.data();
-    SQUEAL_UNROLL
-    for (PetscInt i = 0; i < n; ++i) dq[i] = u_[i] - prev_[i], prev_[i] = u_[i]; // h ub
-    if (damped_) damping_ += Quadratic(C_, dq) / h_;
-    PetscReal wr = 0;
-    SQUEAL_UNROLL
-    for (PetscInt k = 0; k < m; ++k) wr += Row(Ht_, k, dq) * r[k];
-    reactions_ += wr;
-    return 0;
-  }
-
-  PetscErrorCode Totals(PetscReal s[5]) override
-  {
-    const PetscInt n  = Size();
-    PetscReal      wf = 0;
-    SQUEAL_UNROLL
-    for (PetscInt i = 0; i < n; ++i) wf += F_[i] * (u_[i] - start_[i]);
-    s[0] = 0.5 * Quadratic(M_, du_);
-    s[1] = 0.5 * Quadratic(K_, u_);
-    s[2] = damping_, s[3] = reactions_, s[4] = wf;
-    return 0;
-  }
-
-  void Copy(const PetscReal *u, const PetscReal *du, const Eigen::VectorXd &r, PetscReal *U, PetscReal *V, PetscReal *R) override
-  {
-    const PetscInt n = Size(), m = 3 * NcSize();
-    SQUEAL_UNROLL
-    for (PetscInt i = 0; i < n; ++i) U[i] = u[i], V[i] = du[i];
-    SQUEAL_UNROLL
-    for (PetscInt k = 0; k < m; ++k) R[k] = r[k];
-  }
-
-private:
-  PetscInt Size() const { return N == Eigen::Dynamic ? n_ : N; }
-  PetscInt NcSize() const { return NC == Eigen::Dynamic ? nc_ : NC; }
-  template <class A>
-  PetscReal Row(const A &a, PetscInt i, const PetscReal *x) const
-  {
-    const PetscInt n = Size();
-    PetscReal      s = 0;
-    SQUEAL_UNROLL
-    for (PetscInt j = 0; j < n; ++j) s += a(i, j) * x[j];
-    return s;
-  }
-  PetscReal Quadratic(const MatN &a, const PetscReal *x) const // x^T a x
-  {
-    const PetscInt n = Size();
-    PetscReal      s = 0;
-    SQUEAL_UNROLL
-    for (PetscInt i = 0; i < n; ++i) s += x[i] * Row(a, i, x);
-    return s;
-  }
-  MatN DenseOf(Mat A) const
-  {
-    MatN D = MatN::Zero(n_, n_);
-    for (PetscInt i = 0; i < n_; ++i) {
-      PetscInt           nz;
-      const PetscInt    *cj;
-      const PetscScalar *v;
-      PetscCallAbort(PETSC_COMM_SELF, MatGetRow(A, i, &nz, &cj, &v));
-      for (PetscInt k = 0; k < nz; ++k) D(i, cj[k]) = PetscRealPart(v[k]);
-      PetscCallAbort(PETSC_COMM_SELF, MatRestoreRow(A, i, &nz, &cj, &v));
-    }
-    return D;
-  }
-
-  const PetscInt   nc_;
-  const PetscReal  h_;
-  const bool       damped_;
-  const PetscReal *u_, *du_;
-  MatN             M_, C_, K_;
-  MatH             Ht_;
-  VecN             F_, prev_, start_, dq_;
-};
-
-// The dense ledger for the step kernel's fixed sizes, else null.
-std::unique_ptr<Ledger> MakeDenseLedger(const Model &model, const PetscReal *u, const PetscReal *du, PetscReal h)
+// A step whose contact solve hit its pass limit: counted, the first one reported.
+PetscErrorCode Capped(MPI_Comm comm, const ThetaIntegrator &ti, const StepInfo &info, PetscInt i, PetscReal h, TransientSummary &s)
 {
-  const PetscInt n = model.Size(), nc = model.contacts.Size();
-  if (n == 3 && nc == 1) return std::make_unique<DenseLedger<3, 1>>(model, u, du, h);
-  if (n == 12 && nc == 4) return std::make_unique<DenseLedger<12, 4>>(model, u, du, h);
-  return nullptr;
+  PetscFunctionBeginUser;
+  if (s.fp_capped++ == 0) {
+    s.first_capped_step     = i;
+    s.first_capped_residual = info.contact.residual;
+    PetscCall(PetscFPrintf(comm, PETSC_STDERR,
+                           "squeal: warning: contact fixed point hit its pass limit at step %" PetscInt_FMT
+                           " (t = %g s, residual %.2e): reactions not converged; see -%sfp_max_it, -%srho_scale\n",
+                           i, (double)(i * h), (double)info.contact.residual, ti.Prefix().c_str(), ti.Prefix().c_str()));
+  }
+  PetscFunctionReturn(0);
 }
-
-// Any other case (other sizes, run-time-sized kernel, sparse back end, several ranks): the same sums
-// with PETSc's products, dots over this rank's rows only (no reduction), and H r from this rank's
-// rows of H (no communication).
-class VecLedger final : public Ledger {
-public:
-  static PetscErrorCode Create(const Model &model, Vec U, Vec dU, PetscReal h, std::unique_ptr<Ledger> &out)
-  {
-    PetscInt lo, hi;
-    PetscFunctionBeginUser;
-    auto l = std::make_unique<VecLedger>();
-    l->model_ = &model, l->U_ = U, l->dU_ = dU, l->h_ = h, l->n_ = model.Size();
-    PetscCall(VecDuplicate(U, l->U0_.out()));
-    PetscCall(VecCopy(U, l->U0_));
-    PetscCall(VecDuplicate(U, l->start_.out()));
-    PetscCall(VecCopy(U, l->start_));
-    PetscCall(VecDuplicate(U, l->dq_.out()));
-    PetscCall(VecDuplicate(U, l->cq_.out()));
-    PetscCall(VecGetOwnershipRange(U, &lo, &hi));
-    for (PetscInt c = 0; c < model.contacts.Size(); ++c)
-      for (int d = 0; d < 3; ++d)
-        model.contacts.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) {
-          if (j >= lo && j < hi) l->h_rows_.push_back({j - lo, 3 * c + d, v});
-        });
-    out = std::move(l);
-    PetscFunctionReturn(0);
-  }
-
-  PetscErrorCode Work(const Eigen::VectorXd &r) override
-  {
-    const PetscScalar *dq;
-    PetscReal          w;
-    PetscFunctionBeginUser;
-    PetscCall(VecWAXPY(dq_, -1.0, U0_, U_)); // h ub
-    PetscCall(VecCopy(U_, U0_));
-    if (model_->HasDamping()) {
-      PetscCall(MatMult(model_->C, dq_, cq_));
-      PetscCall(LocalDot(dq_, cq_, &w));
-      damping_ += w / h_;
-    }
-    PetscCall(VecGetArrayRead(dq_, &dq));
-    w = 0;
-    for (const HEntry &e : h_rows_) w += PetscRealPart(dq[e.row]) * e.value * r[e.col];
-    PetscCall(VecRestoreArrayRead(dq_, &dq));
-    reactions_ += w;
-    PetscFunctionReturn(0);
-  }
-
-  PetscErrorCode Totals(PetscReal s[5]) override
-  {
-    PetscFunctionBeginUser;
-    PetscCall(MatMult(model_->M, dU_, cq_));
-    PetscCall(LocalDot(dU_, cq_, &s[0]));
-    PetscCall(MatMult(model_->K, U_, cq_));
-    PetscCall(LocalDot(U_, cq_, &s[1]));
-    s[0] *= 0.5, s[1] *= 0.5;
-    s[2] = damping_, s[3] = reactions_;
-    PetscCall(VecWAXPY(cq_, -1.0, start_, U_));
-    PetscCall(LocalDot(cq_, model_->F, &s[4]));
-    PetscFunctionReturn(0);
-  }
-
-private:
-  static PetscErrorCode LocalDot(Vec x, Vec y, PetscReal *d)
-  {
-    const PetscScalar *a, *b;
-    PetscInt           n;
-    PetscFunctionBeginUser;
-    PetscCall(VecGetLocalSize(x, &n));
-    PetscCall(VecGetArrayRead(x, &a));
-    PetscCall(VecGetArrayRead(y, &b));
-    PetscReal s = 0;
-    for (PetscInt i = 0; i < n; ++i) s += PetscRealPart(a[i] * PetscConj(b[i]));
-    PetscCall(VecRestoreArrayRead(y, &b));
-    PetscCall(VecRestoreArrayRead(x, &a));
-    *d = s;
-    PetscFunctionReturn(0);
-  }
-
-  struct HEntry {
-    PetscInt  row, col; // local row of U, local reaction index 3 c + direction
-    PetscReal value;
-  };
-  const Model        *model_ = nullptr;
-  Vec                 U_ = nullptr, dU_ = nullptr;
-  PetscReal           h_ = 0;
-  VecH                U0_, start_, dq_, cq_;
-  std::vector<HEntry> h_rows_;
-};
 
 // The status of every point for reactions r, as LocalContactSolver::Status (open: r_n <= 0; stick:
 // |r_T| < (1 - 1e-9) mu r_n; rectilinear: |r_t| for |r_T|), with |r_T|^2 in place of its hypot
 // (~50 instructions, a tenth of a 3-DOF step) wherever that decides by more than the rounding
 // of either form (a relative margin of 1e-12, where both are exact to a few 1e-16); the rare
-// points inside the margin go to Status itself, so the result is Status's.
+// points inside the margin go to Status itself, so the result is Status's. Kept in this file with
+// Event: the loop inlines both (StatusOf in the bookkeeping's file was a call per recorded step,
+// ~50 instructions more per 3-DOF step, benchmarks/transient_instructions.sh).
 class StatusOf {
 public:
   StatusOf(const ContactSet &cs, const LocalContactSolver &ls) : cs_(cs), ls_(ls) {}
@@ -370,68 +139,53 @@ private:
   std::vector<int>          all_;
 };
 
-// The records on rank 0, sized for the whole run before it starts (a record is then a few stores,
-// with no growth test per value) and cut to the records written when Run leaves, by any path.
-struct RecordSink {
-  TransientResult &res;
-  const PetscInt   N, nc;
-  bool             on = false; // rank 0
-  size_t           n  = 0;     // records written
-  RecordSink(TransientResult &r, PetscInt N_, PetscInt nc_) : res(r), N(N_), nc(nc_) {}
-  ~RecordSink() { Cut(); }
-  void Size(size_t records)
-  {
-    on = true;
-    res.t.resize(records);
-    res.U.resize(records * N);
-    res.V.resize(records * N);
-    res.R.resize(records * 3 * nc);
-    res.status.resize(records * nc);
-    res.energy.resize(records * 4);
-  }
-  void Cut()
-  {
-    if (!on) return;
-    res.t.resize(n);
-    res.U.resize(n * N);
-    res.V.resize(n * N);
-    res.R.resize(n * 3 * nc);
-    res.status.resize(n * nc);
-    res.energy.resize(n * 4);
-  }
-};
-
-// Copies v, gathered on rank 0, to out (rank 0 only).
-PetscErrorCode Gather(VecScatter sc, Vec v, Vec z, PetscReal *out)
+// After a step that is recorded or monitored: the totals, the NaN test, the statuses, the record,
+// the monitor line; *nan set when the energy is not finite (then nothing is recorded). A function of
+// this file with one caller, so that it is inlined in the loop (with StatusOf's test).
+PetscErrorCode Event(transient::Bookkeeping &book, StatusOf &status_of, PetscInt i, PetscReal h, bool rec, bool mon, PetscInt fp_its,
+                     const Eigen::VectorXd &r, bool *nan)
 {
-  PetscInt           n;
-  const PetscScalar *a;
+  const PetscReal t = i * h;
   PetscFunctionBeginUser;
-  PetscCall(VecScatterBegin(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecGetLocalSize(z, &n));
-  PetscCall(VecGetArrayRead(z, &a));
-  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
-  PetscCall(VecRestoreArrayRead(z, &a));
+  PetscCall(book.Totals());
+  *nan = !book.Finite();
+  if (*nan) PetscFunctionReturn(0);
+  status_of(r, book.Status());
+  if (rec) PetscCall(book.Record(t, r));
+  if (mon) PetscCall(book.Monitor(i, fp_its));
   PetscFunctionReturn(0);
 }
 
+// The progress line on stderr, at most every 0.5 s and at the last step.
+class Progress {
+public:
+  Progress(PetscInt nsteps, PetscReal h) : nsteps_(nsteps), h_(h), start_(std::chrono::steady_clock::now()), last_(start_) {}
+  void operator()(PetscInt i)
+  {
+    auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_).count() > 0.5 || i == nsteps_) {
+      last_            = now;
+      const double el  = std::chrono::duration<double>(now - start_).count();
+      const double eta = el * (nsteps_ - i) / i;
+      std::fprintf(stderr, "\rtransient: %5.1f%%  t = %.4g s  step %lld/%lld  ETA %.0f s   ", 100.0 * i / nsteps_, (double)(i * h_),
+                   (long long)i, (long long)nsteps_, eta);
+      if (i == nsteps_) std::fprintf(stderr, "\n");
+    }
+  }
+
+private:
+  const PetscInt                        nsteps_;
+  const PetscReal                       h_;
+  std::chrono::steady_clock::time_point start_, last_;
+};
+
 } // namespace
 
-PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab,
-                                      ThetaIntegrator &ti, TransientResult &res)
+// Starting mode and reference period: the chosen mode, else the most unstable, else the first
+// oscillatory one, else (overdamped model) the least damped real mode, which sets no period.
+PetscErrorCode TransientAnalysis::StartMode(const StabilityResult &stab, const Mode **start) const
 {
-  const PetscInt N = model.Size(), nc = model.contacts.Size();
-  PetscMPIInt    rank;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
-  res    = TransientResult{};
-  RecordSink recs(res, N, nc); // before anything that may return: cut on the way out
-  res.N  = N;
-  res.nc = nc;
-
-  // Starting mode and reference period: the chosen mode, else the most unstable, else the first
-  // oscillatory one, else (overdamped model) the least damped real mode, which sets no period.
   PetscInt which = mode;
   if (which < 0) which = stab.unstable.empty() ? -1 : stab.unstable[0];
   if (which < 0)
@@ -447,41 +201,81 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
              "transient: mode %" PetscInt_FMT " is not oscillatory (overdamped model): no period sets the time step; give -transient_h "
              "(and -transient_t_final)",
              which);
+  *start = &m;
+  PetscFunctionReturn(0);
+}
+
+// Size of the records (all on rank 0, then in the file): refuse or thin before the run.
+PetscErrorCode TransientAnalysis::RecordCount(PetscInt N, PetscInt nc, PetscInt nsteps, TransientResult &res, PetscInt *records) const
+{
+  PetscFunctionBeginUser;
+  PetscReal budget = max_memory * 1048576.0;
+  if (budget == 0) {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    budget           = pages > 0 && page > 0 ? 0.25 * (PetscReal)pages * (PetscReal)page : 4.0 * 1073741824.0;
+  }
+  PetscCallMPI(MPI_Bcast(&budget, 1, MPIU_REAL, 0, comm_)); // rank 0 holds the records: its memory counts
+  const PetscReal per   = RecordBytes(N, nc);
+  const PetscReal need  = per * (PetscReal)(nsteps / keep_every + 2);
+  if (need > budget) {
+    PetscCheck(!keep_every_set, comm_, kErrInput,
+               "transient: %" PetscInt_FMT " records of %.0f bytes need %.0f MiB, over the budget %.0f MiB (-transient_max_memory); "
+               "raise -transient_keep_every to %.0f, or -transient_max_memory, or shorten -transient_periods",
+               nsteps / keep_every + 2, (double)per, (double)(need / 1048576.0), (double)(budget / 1048576.0),
+               std::ceil((double)keep_every * need / budget));
+    const PetscInt k = (PetscInt)std::ceil((PetscReal)keep_every * need / budget);
+    PetscCall(PetscPrintf(comm_,
+                          "transient: keeping every %" PetscInt_FMT "-th step: all %" PetscInt_FMT " records would need %.0f MiB, over the "
+                          "budget %.0f MiB (-transient_max_memory)\n",
+                          k, nsteps / keep_every + 2, (double)(need / 1048576.0), (double)(budget / 1048576.0)));
+    res.keep_every = k;
+  } else res.keep_every = keep_every;
+  *records = nsteps / res.keep_every + 2;
+  PetscCall(PetscPrintf(comm_, "transient: %" PetscInt_FMT " steps, %" PetscInt_FMT " records: %.1f MiB in memory (rank 0) and in the file\n",
+                        nsteps, *records, (double)(per * *records / 1048576.0)));
+  PetscFunctionReturn(0);
+}
+
+// The start: -transient_u0 and -transient_du0, else U_e + a Re(phi), dU = -a omega Im(phi).
+PetscErrorCode TransientAnalysis::StartState(const SlidingEquilibrium &eq, const Mode &m, Vec U, Vec dU) const
+{
+  PetscFunctionBeginUser;
+  if (!u0.empty()) {
+    PetscCall(SetFromArray(U, u0));
+    if (!du0.empty()) PetscCall(SetFromArray(dU, du0));
+    else PetscCall(VecZeroEntries(dU));
+  } else {
+    PetscCall(VecWAXPY(U, amplitude, m.phi_re, eq.U));
+    PetscCall(VecAXPBY(dU, -amplitude * m.omega, 0.0, m.phi_im));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab,
+                                      ThetaIntegrator &ti, TransientResult &res)
+{
+  const PetscInt N = model.Size(), nc = model.contacts.Size();
+  PetscMPIInt    rank, size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  res = TransientResult{};
+  transient::Bookkeeping book(comm_, res, N, nc); // before anything that may return: the records are cut on the way out
+  res.N  = N;
+  res.nc = nc;
+
+  const Mode *start;
+  PetscCall(StartMode(stab, &start));
+  const Mode &m = *start;
   res.T_ref     = m.Oscillatory() ? m.Period() : 0.0;
   res.h         = h > 0 ? h : res.T_ref / steps_per_period;
   res.theta     = ti.Theta();
   // Without a period, -transient_periods counts blocks of -transient_steps_per_period steps.
   const PetscReal tf     = t_final > 0 ? t_final : (res.T_ref > 0 ? periods * res.T_ref : periods * steps_per_period * res.h);
   const PetscInt  nsteps = (PetscInt)std::ceil(tf / res.h - 1e-9);
-
-  // Size of the records (all on rank 0, then in the file): refuse or thin before the run.
-  {
-    PetscReal budget = max_memory * 1048576.0;
-    if (budget == 0) {
-      const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-      budget           = pages > 0 && page > 0 ? 0.25 * (PetscReal)pages * (PetscReal)page : 4.0 * 1073741824.0;
-    }
-    PetscCallMPI(MPI_Bcast(&budget, 1, MPIU_REAL, 0, comm_)); // rank 0 holds the records: its memory counts
-    const PetscReal per   = RecordBytes(N, nc);
-    const PetscReal need  = per * (PetscReal)(nsteps / keep_every + 2);
-    if (need > budget) {
-      PetscCheck(!keep_every_set, comm_, kErrInput,
-                 "transient: %" PetscInt_FMT " records of %.0f bytes need %.0f MiB, over the budget %.0f MiB (-transient_max_memory); "
-                 "raise -transient_keep_every to %.0f, or -transient_max_memory, or shorten -transient_periods",
-                 nsteps / keep_every + 2, (double)per, (double)(need / 1048576.0), (double)(budget / 1048576.0),
-                 std::ceil((double)keep_every * need / budget));
-      const PetscInt k = (PetscInt)std::ceil((PetscReal)keep_every * need / budget);
-      PetscCall(PetscPrintf(comm_,
-                            "transient: keeping every %" PetscInt_FMT "-th step: all %" PetscInt_FMT " records would need %.0f MiB, over the "
-                            "budget %.0f MiB (-transient_max_memory)\n",
-                            k, nsteps / keep_every + 2, (double)(need / 1048576.0), (double)(budget / 1048576.0)));
-      res.keep_every = k;
-    } else res.keep_every = keep_every;
-    const PetscInt records = nsteps / res.keep_every + 2;
-    PetscCall(PetscPrintf(comm_, "transient: %" PetscInt_FMT " steps, %" PetscInt_FMT " records: %.1f MiB in memory (rank 0) and in the file\n",
-                          nsteps, records, (double)(per * records / 1048576.0)));
-    if (rank == 0) recs.Size(records);
-  }
+  PetscInt        records;
+  PetscCall(RecordCount(N, nc, nsteps, res, &records));
+  if (rank == 0) book.SizeRecords(records);
 
   if (!u0.empty()) {
     PetscCheck((PetscInt)u0.size() == N, comm_, kErrInput, "option -transient_u0 has %zu values, the model has %" PetscInt_FMT " DOFs",
@@ -493,8 +287,6 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
 
   // The state. On one rank its Vecs are views of arrays of this function, which the integrator
   // updates in place: the bookkeeping and the records read them without a PETSc call per step.
-  PetscMPIInt size;
-  PetscCallMPI(MPI_Comm_size(comm_, &size));
   Eigen::VectorXd us, dus;
   VecH            U, dU;
   if (size == 1) {
@@ -505,14 +297,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
     PetscCall(VecDuplicate(eq.U, U.out()));
     PetscCall(VecDuplicate(eq.U, dU.out()));
   }
-  if (!u0.empty()) {
-    PetscCall(SetFromArray(U, u0));
-    if (!du0.empty()) PetscCall(SetFromArray(dU, du0));
-    else PetscCall(VecZeroEntries(dU));
-  } else {
-    PetscCall(VecWAXPY(U, amplitude, m.phi_re, eq.U));
-    PetscCall(VecAXPBY(dU, -amplitude * m.omega, 0.0, m.phi_im));
-  }
+  PetscCall(StartState(eq, m, U, dU));
 
   // Warm start: the steady-sliding reactions.
   Eigen::VectorXd r = Eigen::VectorXd::Zero(3 * nc);
@@ -520,103 +305,21 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
     r[3 * c + kT] = model.contacts.Mu() * eq.N[c];
     r[3 * c + kN] = eq.N[c];
   }
-  std::unique_ptr<Ledger> ledger;
-  if (size == 1 && ti.FixedSizeKernel()) ledger = MakeDenseLedger(model, us.data(), dus.data(), res.h);
-  if (!ledger) PetscCall(VecLedger::Create(model, U, dU, res.h, ledger));
-  Handle<VecScatter> sc; // several ranks: the records gathered on rank 0
-  VecH               z;
-  if (size > 1) PetscCall(VecScatterCreateToZero(U, sc.out(), z.out()));
-  std::vector<int> status(nc, kSlip);
-  StatusOf         status_of(model.contacts, ti.Contact());
-  // Energies and works over all ranks (E_kinetic, E_elastic, W_damping, W_reactions, W_load): one
-  // reduction, where a record or a monitor line needs them.
-  PetscReal tot[5];
-  auto      totals = [&]() -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    PetscCall(ledger->Totals(tot));
-    if (size > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, tot, 5, MPIU_REAL, MPIU_SUM, comm_));
-    PetscFunctionReturn(0);
-  };
-  PetscCall(totals());
-  const PetscReal E0     = tot[0] + tot[1];
-  auto            record = [&](PetscReal t) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    const size_t k = recs.n;
-    if (size > 1) {
-      PetscCall(Gather(sc, U, z, res.U.data() + k * N));
-      PetscCall(Gather(sc, dU, z, res.V.data() + k * N));
-      if (rank == 0) std::copy_n(r.data(), 3 * nc, res.R.data() + k * 3 * nc);
-    } else ledger->Copy(us.data(), dus.data(), r, res.U.data() + k * N, res.V.data() + k * N, res.R.data() + k * 3 * nc);
-    if (rank == 0) {
-      res.t[k]        = t;
-      PetscInt *st    = res.status.data() + k * nc;
-      for (PetscInt c = 0; c < nc; ++c) st[c] = status[c];
-      PetscReal *e = res.energy.data() + 4 * k;
-      e[0] = tot[0] + tot[1], e[1] = tot[2], e[2] = tot[3], e[3] = tot[4];
-      recs.n++;
-    }
-    PetscFunctionReturn(0);
-  };
-  PetscCall(record(0.0));
+  PetscCall(book.SetUp(model, size == 1 && ti.FixedSizeKernel(), U, dU, size == 1 ? us.data() : nullptr, size == 1 ? dus.data() : nullptr, r));
+  StatusOf status_of(model.contacts, ti.Contact());
 
-  const bool     tty       = isatty(STDERR_FILENO);
-  const bool     show_prog = rank == 0 && (progress_set ? (bool)progress : tty);
-  auto           start     = std::chrono::steady_clock::now();
-  auto           last      = start;
+  const bool     show_prog = rank == 0 && (progress_set ? (bool)progress : isatty(STDERR_FILENO));
+  Progress       progress_line(nsteps, res.h);
   StepInfo       info;
   PetscErrorCode ierr     = 0;
   PetscInt       nan_step = -1;
-  // After a step that is recorded or monitored: totals, the NaN test, statuses, the record, the
-  // monitor line; *nan set when the energy is not finite (then nothing is recorded).
-  auto event = [&](PetscInt i, bool rec, bool mon, bool *nan) -> PetscErrorCode {
-    const PetscReal t = i * res.h;
-    PetscFunctionBeginUser;
-    PetscCall(totals());
-    *nan = !std::isfinite(tot[0] + tot[1]);
-    if (*nan) PetscFunctionReturn(0);
-    status_of(r, status.data());
-    if (rec) PetscCall(record(t));
-    if (mon) {
-      PetscInt cnt[3] = {0, 0, 0};
-      for (int s : status) cnt[s]++;
-      const PetscReal E = tot[0] + tot[1], bal = (E - E0) - (tot[3] + tot[4] - tot[2]);
-      PetscCall(PetscPrintf(comm_,
-                            "  step %8" PetscInt_FMT " t = %.6e s  open/stick/slip %" PetscInt_FMT "/%" PetscInt_FMT "/%" PetscInt_FMT
-                            "  fp its %3" PetscInt_FMT "  E = %.6e J  balance %.3e J\n",
-                            i, (double)t, cnt[0], cnt[1], cnt[2], info.contact.iterations, (double)E, (double)bal));
-    }
-    PetscFunctionReturn(0);
-  };
-  auto capped = [&](PetscInt i) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    if (res.summary.fp_capped++ == 0) {
-      res.summary.first_capped_step     = i;
-      res.summary.first_capped_residual = info.contact.residual;
-      PetscCall(PetscFPrintf(comm_, PETSC_STDERR,
-                             "squeal: warning: contact fixed point hit its pass limit at step %" PetscInt_FMT
-                             " (t = %g s, residual %.2e): reactions not converged; see -%sfp_max_it, -%srho_scale\n",
-                             i, (double)(i * res.h), (double)info.contact.residual, ti.Prefix().c_str(), ti.Prefix().c_str()));
-    }
-    PetscFunctionReturn(0);
-  };
-  auto progress_line = [&](PetscInt i) {
-    auto now = std::chrono::steady_clock::now();
-    if (std::chrono::duration<double>(now - last).count() > 0.5 || i == nsteps) {
-      last             = now;
-      const double el  = std::chrono::duration<double>(now - start).count();
-      const double eta = el * (nsteps - i) / i;
-      std::fprintf(stderr, "\rtransient: %5.1f%%  t = %.4g s  step %lld/%lld  ETA %.0f s   ", 100.0 * i / nsteps, (double)(i * res.h),
-                   (long long)i, (long long)nsteps, eta);
-      if (i == nsteps) std::fprintf(stderr, "\n");
-    }
-  };
 
   // The loop keeps to locals the compiler can hold in registers; everything else is in the
-  // functions above, called at the records, monitor lines and rare events only.
-  Ledger        *led = ledger.get();
-  Vec            Uv = U, dUv = dU;
-  const PetscInt keep = res.keep_every;
-  PetscInt       fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT;
+  // functions above and in the bookkeeping, called at the records, monitor lines and rare events only.
+  transient::Ledger *led = book.GetLedger();
+  Vec                Uv = U, dUv = dU;
+  const PetscInt     keep = res.keep_every;
+  PetscInt           fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT;
   for (PetscInt i = 1; i <= nsteps; ++i) {
     ierr = ti.Step(Uv, dUv, r, &info);
     if (ierr) break;
@@ -625,14 +328,14 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
         nan_step = i;
         break;
       }
-      if (!info.contact.converged) PetscCall(capped(i));
+      if (!info.contact.converged) PetscCall(Capped(comm_, ti, info, i, res.h, res.summary));
     }
     fp_total += info.contact.iterations;
     PetscCall(led->Work(r));
     const bool rec = --to_record == 0 || i == nsteps, mon = --to_monitor == 0;
     if (rec || mon) {
       bool nan;
-      PetscCall(event(i, rec, mon, &nan));
+      PetscCall(Event(book, status_of, i, res.h, rec, mon, info.contact.iterations, r, &nan));
       if (nan) {
         nan_step = i;
         break;
@@ -646,7 +349,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
     if (i % 32 == 0) PetscCall(InterruptRequested(comm_, &stop));
     if (stop) break;
   }
-  recs.Cut();
+  book.Cut();
   res.summary.mean_fp_iterations = res.steps ? (PetscReal)fp_total / res.steps : 0;
   if (rank == 0) Summarise(res, settle_tol, settle_periods);
   res.complete = !ierr && nan_step < 0 && res.steps == nsteps;
@@ -675,298 +378,6 @@ PetscReal TransientAnalysis::RecordBytes(PetscInt N, PetscInt nc)
 {
   // t, U, dU, R (3 per point), energy (4) as reals; status as one integer per point.
   return (PetscReal)((1 + 2 * N + 3 * nc + 4) * sizeof(PetscReal) + nc * sizeof(PetscInt));
-}
-
-namespace {
-
-// Cubic Hermite interpolant of one record interval of length h from the values and the recorded
-// velocities: p(s) = x0 + h v0 s + b s^2 + c s^3, s in [0, 1]. Its error is O(h^4): a clean
-// cycle's crossing times and extrema come out far below the record spacing.
-struct Hermite {
-  PetscReal x0, hv0, b, c;
-  Hermite(PetscReal x0_, PetscReal x1, PetscReal v0, PetscReal v1, PetscReal h) : x0(x0_), hv0(h * v0)
-  {
-    const PetscReal d = x1 - x0_;
-    b                 = 3 * d - h * (2 * v0 + v1);
-    c                 = h * (v0 + v1) - 2 * d;
-  }
-  PetscReal operator()(PetscReal s) const { return x0 + s * (hv0 + s * (b + s * c)); }
-  // Smallest and largest value on [0, 1]: the end points and the roots of p' = hv0 + 2 b s + 3 c s^2.
-  void Range(PetscReal &lo, PetscReal &hi) const
-  {
-    lo = std::min((*this)(0), (*this)(1));
-    hi = std::max((*this)(0), (*this)(1));
-    const PetscReal A = 3 * c, B = 2 * b, C = hv0;
-    PetscReal       r[2];
-    int             n = 0;
-    if (std::abs(A) > 1e-12 * (std::abs(B) + std::abs(C))) {
-      const PetscReal disc = B * B - 4 * A * C;
-      if (disc >= 0) {
-        const PetscReal q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-        r[n++]            = q / A;
-        if (q != 0) r[n++] = C / q;
-      }
-    } else if (B != 0) r[n++] = -C / B;
-    for (int i = 0; i < n; ++i)
-      if (r[i] > 0 && r[i] < 1) lo = std::min(lo, (*this)(r[i])), hi = std::max(hi, (*this)(r[i]));
-  }
-  // A root of p(s) = level in [0, 1] given p(0) < level <= p(1); bisection, since p need not be monotone.
-  PetscReal Crossing(PetscReal level) const
-  {
-    PetscReal lo = 0, hi = 1;
-    for (int i = 0; i < 64 && hi - lo > 1e-16; ++i) {
-      const PetscReal m = 0.5 * (lo + hi);
-      ((*this)(m) < level ? lo : hi) = m;
-    }
-    return 0.5 * (lo + hi);
-  }
-};
-
-struct Crossing {
-  PetscReal t;    // time of the up-crossing
-  size_t    k;    // record interval [k, k + 1] it lies in
-  PetscReal s;    // fraction of that interval
-};
-
-// Least-squares line y = a + slope i, i = 0..n-1: slope and the std of the residuals.
-void FitLine(const std::vector<PetscReal> &y, PetscReal &slope, PetscReal &scatter)
-{
-  const size_t n = y.size();
-  PetscReal    im = 0.5 * (n - 1), ym = 0, sxx = 0, sxy = 0, r2 = 0;
-  for (PetscReal v : y) ym += v / n;
-  for (size_t i = 0; i < n; ++i) sxx += (i - im) * (i - im), sxy += (i - im) * (y[i] - ym);
-  slope = sxx > 0 ? sxy / sxx : 0;
-  for (size_t i = 0; i < n; ++i) r2 += std::pow(y[i] - ym - slope * (i - im), 2);
-  scatter = n > 2 ? std::sqrt(r2 / (n - 2)) : 0;
-}
-
-} // namespace
-
-void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, PetscInt settle_periods)
-{
-  TransientSummary &s  = res.summary;
-  const size_t      nr = res.t.size();
-  const PetscInt    N = res.N, nc = res.nc;
-  if (nr < 4 || N < 1 || res.U.size() < nr * N) return;
-  const size_t from  = nr - std::max<size_t>(nr / 5, 2);
-  const bool   has_v = res.V.size() >= nr * N; // without velocities the interpolant is the chord
-  auto         U     = [&](size_t k, PetscInt j) { return res.U[k * N + j]; };
-  auto         piece = [&](size_t k, PetscInt j) {
-    const PetscReal h = res.t[k + 1] - res.t[k], chord = (U(k + 1, j) - U(k, j)) / h;
-    return Hermite(U(k, j), U(k + 1, j), has_v ? res.V[k * N + j] : chord, has_v ? res.V[(k + 1) * N + j] : chord, h);
-  };
-  // Extrema of DOF j over records a..b: the recorded ones refined in their neighbouring intervals.
-  auto extrema = [&](PetscInt j, size_t a, size_t b, PetscReal &lo, PetscReal &hi) {
-    size_t klo = a, khi = a;
-    for (size_t k = a; k <= b; ++k) {
-      if (U(k, j) < U(klo, j)) klo = k;
-      if (U(k, j) > U(khi, j)) khi = k;
-    }
-    lo = U(klo, j), hi = U(khi, j);
-    for (size_t k : {klo, khi})
-      for (size_t i = k > a ? k - 1 : a; i <= k && i < b; ++i) {
-        PetscReal l, h;
-        piece(i, j).Range(l, h);
-        lo = std::min(lo, l), hi = std::max(hi, h);
-      }
-  };
-
-  s.peak_to_peak.assign(N, 0.0);
-  std::vector<PetscReal> mean(N, 0.0);
-  PetscInt               best = 0;
-  for (PetscInt j = 0; j < N; ++j) {
-    PetscReal lo, hi;
-    extrema(j, from, nr - 1, lo, hi);
-    s.peak_to_peak[j] = hi - lo;
-    for (size_t k = from; k < nr; ++k) mean[j] += U(k, j) / (PetscReal)(nr - from);
-    if (s.peak_to_peak[j] > s.peak_to_peak[best]) best = j;
-  }
-  s.signal_dof      = best;
-  s.settled         = false;
-  s.period          = 0;
-  s.cycles          = 0;
-  s.fit_cycles      = 0;
-  s.period_multiple = 1;
-  s.amplitude_rate = s.period_change = s.amplitude_change = s.return_error = s.return_floor = s.amplitude_scatter = s.period_scatter = 0;
-  s.records_per_period = 0;
-
-  // Poincare section: up-crossings of the mean of the DOF that moves most, with hysteresis. A
-  // crossing counts only after the DOF went below mean - kHysteresis x the depth of the previous
-  // cycle, so the wiggles of strong harmonics across the mean are not cycles, and a growing or
-  // decaying motion (by up to 1 / kHysteresis per cycle) keeps every cycle. Before the first
-  // crossing the depth is that of the first period of the window (a first pass with the whole
-  // window's depth estimates the period), so a growing motion loses no cycle either.
-  constexpr PetscReal   kHysteresis = 0.5;
-  const PetscReal       c           = mean[best];
-  const PetscReal       dt          = (res.t[nr - 1] - res.t[from]) / (PetscReal)(nr - 1 - from);
-  std::vector<Crossing> cr;
-  auto                  section = [&](PetscReal depth) {
-    PetscReal cyc_min = kInf;
-    bool      armed   = false;
-    cr.clear();
-    for (size_t k = from; k + 1 < nr; ++k) {
-      const PetscReal x0 = U(k, best), x1 = U(k + 1, best);
-      cyc_min            = std::min(cyc_min, x0);
-      if (x0 < c - kHysteresis * depth) armed = true;
-      if (armed && x0 < c && x1 >= c) {
-        const PetscReal sk = piece(k, best).Crossing(c);
-        cr.push_back({res.t[k] + sk * (res.t[k + 1] - res.t[k]), k, sk});
-        armed   = false;
-        depth   = c - cyc_min;
-        cyc_min = kInf;
-      }
-    }
-  };
-  {
-    PetscReal depth = 0;
-    for (size_t k = from; k < nr; ++k) depth = std::max(depth, c - U(k, best));
-    section(depth);
-    if (cr.size() >= 2) {
-      const PetscReal T1 = (cr.back().t - cr.front().t) / (PetscReal)(cr.size() - 1);
-      depth              = 0;
-      for (size_t k = from; k < nr && res.t[k] <= res.t[from] + T1; ++k) depth = std::max(depth, c - U(k, best));
-      section(depth);
-    }
-  }
-
-  if (!(s.peak_to_peak[best] > 0)) s.trend = Trend::NoOscillation;
-  else if (cr.size() < 2) s.trend = res.T_ref > 0 && dt > res.T_ref / 8 ? Trend::Aliased : Trend::TooShort;
-  else {
-    // The whole state Z = (U - mean, dU / omega) at the last crossings (at most kMaxStates, so a
-    // long window of a large model costs little): U by its Hermite interpolant, dU by the cubic
-    // through the 4 nearest records (no acceleration is recorded).
-    const size_t    L         = (size_t)settle_periods + 1;
-    const size_t    kMax      = std::max<size_t>(64, L) + 3;
-    const size_t    e0        = cr.size() > kMax ? cr.size() - kMax : 0, ne = cr.size() - e0;
-    const PetscReal omega     = 2 * PETSC_PI * (PetscReal)(cr.size() - 1) / (cr.back().t - cr.front().t);
-    PetscReal       zscale    = 0;
-    for (size_t k = from; k < nr; ++k) {
-      PetscReal z2 = 0;
-      for (PetscInt j = 0; j < N; ++j) {
-        z2 += std::pow(U(k, j) - mean[j], 2);
-        if (has_v) z2 += std::pow(res.V[k * N + j] / omega, 2);
-      }
-      zscale += std::sqrt(z2) / (PetscReal)(nr - from);
-    }
-    // The interpolation error of Z, estimated per crossing by the change of dU from the quadratic
-    // through the 3 nearest of those records to the cubic, is the floor under which a return
-    // error cannot be checked (coarse records: -transient_keep_every).
-    std::vector<PetscReal> Z(ne * 2 * N, 0.0), zfloor(ne, 0.0);
-    for (size_t e = 0; e < ne; ++e) {
-      const Crossing &x  = cr[e0 + e];
-      PetscReal      *z  = &Z[e * 2 * N];
-      const size_t    k0 = std::min(x.k > 0 ? x.k - 1 : 0, nr - 4);
-      const int       q0 = x.t - res.t[k0] < res.t[k0 + 3] - x.t ? 0 : 1; // the quadratic's first node
-      PetscReal       w[4], wq[3];
-      for (int a = 0; a < 4; ++a) {
-        w[a] = 1;
-        for (int b = 0; b < 4; ++b)
-          if (b != a) w[a] *= (x.t - res.t[k0 + b]) / (res.t[k0 + a] - res.t[k0 + b]);
-      }
-      for (int a = 0; a < 3; ++a) {
-        wq[a] = 1;
-        for (int b = 0; b < 3; ++b)
-          if (b != a) wq[a] *= (x.t - res.t[k0 + q0 + b]) / (res.t[k0 + q0 + a] - res.t[k0 + q0 + b]);
-      }
-      PetscReal f2 = 0;
-      for (PetscInt j = 0; j < N; ++j) {
-        z[j] = piece(x.k, j)(x.s) - mean[j];
-        if (!has_v) continue;
-        PetscReal vq = 0;
-        for (int a = 0; a < 4; ++a) z[N + j] += w[a] * res.V[(k0 + a) * N + j] / omega;
-        for (int a = 0; a < 3; ++a) vq += wq[a] * res.V[(k0 + q0 + a) * N + j] / omega;
-        f2 += std::pow(z[N + j] - vq, 2);
-      }
-      zfloor[e] = zscale > 0 ? std::sqrt(f2) / zscale : 0.0;
-    }
-    auto ret = [&](size_t e, size_t m) { // return error from crossing e0 + e to e0 + e + m
-      PetscReal d2 = 0;
-      for (PetscInt j = 0; j < 2 * N; ++j) d2 += std::pow(Z[(e + m) * 2 * N + j] - Z[e * 2 * N + j], 2);
-      return zscale > 0 ? std::sqrt(d2) / zscale : 0.0;
-    };
-    auto median_ret = [&](size_t m) {
-      std::vector<PetscReal> r;
-      for (size_t e = 0; e + m < ne; ++e) r.push_back(ret(e, m));
-      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
-      return r[r.size() / 2];
-    };
-    // The state's period: 2 or 3 crossings when the state returns 10 x closer after them than
-    // after one (a period-2/3 cycle, or a harmonic that still crosses twice a period).
-    size_t m = 1;
-    if (ne >= 4) {
-      const PetscReal r1 = median_ret(1);
-      for (size_t q = 2; q <= 3 && m == 1; ++q)
-        if (ne >= q + 3 && median_ret(q) < 0.1 * r1) m = q;
-    }
-    s.period_multiple = (PetscInt)m;
-
-    // Per cycle (crossing i to i + m): period, peak-to-peak of the section DOF, return error.
-    std::vector<PetscReal> T, A, logA;
-    for (size_t i = 0; i + m < cr.size(); ++i) {
-      PetscReal lo, hi;
-      extrema(best, cr[i].k, cr[i + m].k + 1, lo, hi);
-      T.push_back(cr[i + m].t - cr[i].t);
-      A.push_back(hi - lo);
-      logA.push_back(std::log(std::max(hi - lo, PETSC_SMALL * s.peak_to_peak[best])));
-    }
-    s.cycles             = (PetscInt)T.size();
-    const size_t    nl   = std::min(L, T.size());
-    PetscReal       Tsum = 0;
-    for (size_t i = T.size() - nl; i < T.size(); ++i) Tsum += T[i];
-    s.period             = Tsum / nl;
-    s.records_per_period = s.period / dt;
-    if (s.records_per_period < 8 || (res.T_ref > 0 && dt > res.T_ref / 8)) s.trend = Trend::Aliased;
-    else if (T.size() < L) s.trend = Trend::TooShort;
-    else {
-      const auto Tmm = std::minmax_element(T.end() - L, T.end());
-      const auto Amm = std::minmax_element(A.end() - L, A.end());
-      s.period_change    = (*Tmm.second - *Tmm.first) / s.period;
-      s.amplitude_change = *Amm.second > 0 ? (*Amm.second - *Amm.first) / *Amm.second : 0;
-      for (size_t i = cr.size() - m - L; i + m < cr.size(); ++i) {
-        s.return_error = std::max(s.return_error, ret(i - e0, m));
-        s.return_floor = std::max(s.return_floor, 2 * (zfloor[i - e0] + zfloor[i - e0 + m])); // 2: a margin on an estimate
-      }
-      // Trend over every cycle of the window: the fitted change per period of log(peak-to-peak)
-      // (a cycle advances one crossing, 1/m of a period), and the scatter about that line.
-      PetscReal slope, pslope, pscatter;
-      FitLine(logA, slope, s.amplitude_scatter);
-      FitLine(T, pslope, pscatter);
-      s.period_scatter = pscatter / s.period;
-      s.fit_cycles     = (PetscInt)logA.size();
-      s.amplitude_rate = std::expm1(slope * m);
-      // A trend is one that carries the envelope further over the window than 4 x its scatter.
-      const bool trend = std::abs(s.amplitude_rate) > settle_tol / settle_periods &&
-                         std::abs(slope) * (PetscReal)(logA.size() - 1) > 4 * s.amplitude_scatter;
-      if (s.period_change < settle_tol && s.amplitude_change < settle_tol && s.return_error < std::max(settle_tol, s.return_floor))
-        s.trend = Trend::Settled, s.settled = true;
-      else if (trend) s.trend = s.amplitude_rate > 0 ? Trend::Growing : Trend::Decaying;
-      else if (s.amplitude_scatter > settle_tol || s.period_scatter > settle_tol) {
-        s.trend = Trend::Irregular; // no cycle to converge to: the period is the mean over the window
-        for (size_t i = 0; i + nl < T.size(); ++i) Tsum += T[i];
-        s.period = Tsum / T.size();
-      }
-      else s.trend = Trend::Drifting;
-    }
-  }
-  if (nc > 0 && res.status.size() >= nr * nc) {
-    PetscInt cnt[3] = {0, 0, 0};
-    for (size_t k = from; k < nr; ++k)
-      for (PetscInt c = 0; c < nc; ++c) cnt[res.status[k * nc + c]]++;
-    const PetscReal tot = (PetscReal)((nr - from) * nc);
-    s.frac_separated    = cnt[kOpen] / tot;
-    s.frac_stuck        = cnt[kStick] / tot;
-    s.frac_sliding      = cnt[kSlip] / tot;
-  }
-  if (res.energy.size() >= 4 * nr) {
-    PetscReal       emax = 0, defect = 0;
-    const PetscReal E0   = res.energy[0];
-    for (size_t k = 0; k < nr; ++k) {
-      const PetscReal *e = &res.energy[4 * k];
-      emax               = std::max(emax, std::abs(e[0]));
-      defect             = std::max(defect, std::abs((e[0] - E0) - (e[2] + e[3] - e[1])));
-    }
-    s.energy_defect = emax > 0 ? defect / emax : 0;
-  }
 }
 
 PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer viewer) const

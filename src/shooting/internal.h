@@ -1,4 +1,4 @@
-// Shared by the shooting sources (shooting.cpp, newton.cpp, tangent.cpp); not installed.
+// Shared by the shooting sources (shooting.cpp, pre_periods.cpp, newton.cpp, tangent.cpp); not installed.
 #pragma once
 
 #include "squeal/shooting/shooting.h"

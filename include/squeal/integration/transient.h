@@ -123,6 +123,12 @@ public:
   std::vector<PetscReal> u0, du0;
 
 private:
+  // Run's steps: the mode to start from, the records' number (keep_every raised, or the run refused,
+  // over -transient_max_memory), the start state.
+  PetscErrorCode StartMode(const StabilityResult &stab, const Mode **start) const;
+  PetscErrorCode RecordCount(PetscInt N, PetscInt nc, PetscInt nsteps, TransientResult &res, PetscInt *records) const;
+  PetscErrorCode StartState(const SlidingEquilibrium &eq, const Mode &m, Vec U, Vec dU) const;
+
   MPI_Comm comm_;
 };
 

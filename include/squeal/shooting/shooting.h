@@ -17,9 +17,9 @@
 // correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
 // At convergence, the Floquet multipliers of the orbit (-shoot_floquet): FloquetSolver
 // (floquet/floquet.h), on this object's flow and tangents.
-// Sources: src/shooting/shooting.cpp (options, set-up, Solve and its steps, pre-periods, orbit,
-// report), newton.cpp (residual, Jacobian products, anchor, deflation, SNES callbacks), tangent.cpp
-// (flows, tangent flows, the dense bordered Jacobian, the linearised preconditioner).
+// Sources: src/shooting/shooting.cpp (options, set-up, Solve and its steps, orbit, report), pre_periods.cpp
+// (pre-periods, their period measurement), newton.cpp (residual, Jacobian products, anchor, deflation,
+// SNES callbacks), tangent.cpp (flows, tangent flows, the dense bordered Jacobian, the linearised preconditioner).
 #pragma once
 
 #include "squeal/core/inf.h"
