@@ -117,6 +117,8 @@ PetscErrorCode StabilitySolver::Solve(const Model &model, const SlidingEquilibri
   ReducedProblem rp;
   PetscFunctionBeginUser;
   if (!pep_) PetscCall(SetFromOptions());
+  // A signal during the equilibrium (one factorisation, not polled inside) stops here.
+  PetscCall(InterruptPoint(comm_, "the stability analysis (before its eigensolve)"));
   PetscCall(BuildReducedProblem(model, eq, rp));
   PetscCheck(rp.n_r > 0, comm_, kErrInput, "stability: every DOF is constrained by contact; nothing can vibrate");
 
