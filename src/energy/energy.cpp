@@ -26,6 +26,9 @@ PetscErrorCode EnergyAnalysis::SetFromOptions()
                              "EnergyAnalysis", all_modes, &all_modes, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  // -7 ran as -1 (the most unstable mode) without a word.
+  PetscCheck(mode >= -1, comm_, kErrInput, "option -energy_mode = %" PetscInt_FMT ": expected a mode index >= 0, or -1 for the most unstable mode",
+             mode);
   PetscCheck(n_scan >= 2 && samples >= 8 && bisections >= 0 && extend >= 0, comm_, kErrInput,
              "energy: need -energy_n_scan >= 2, -energy_samples >= 8, -energy_bisections >= 0, -energy_extend >= 0");
   PetscFunctionReturn(0);
