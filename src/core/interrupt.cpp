@@ -24,7 +24,7 @@ void SafeWrite(const char *s) { (void)!write(STDERR_FILENO, s, std::strlen(s)); 
 
 void Salvage(int sig)
 {
-  const char *name = sig == SIGINT ? "SIGINT" : "SIGTERM";
+  const char *name = sig == SIGINT ? "SIGINT" : sig == SIGPIPE ? "SIGPIPE" : "SIGTERM";
   if (g_part[0] == 0) return;
   SafeWrite("squeal: second ");
   SafeWrite(name);
@@ -44,6 +44,10 @@ extern "C" void OnSignal(int sig)
 {
   struct timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now); // async-signal-safe
+  // The reader of standard output has gone (`squeal ... | head`): stop like SIGTERM, keeping the
+  // results (PETSc's handler aborted with a traceback and left the hidden temporary). Later
+  // writes to a broken pipe (stderr under `2>&1 | head`) just fail instead of signalling again.
+  if (sig == SIGPIPE) std::signal(SIGPIPE, SIG_IGN);
   if (g_signal == sig) {
     // A duplicate within half a second (a scheduler signalling both a process and its process
     // group; Open MPI 4.1.4's mpiexec was measured to send one SIGTERM per rank) must not cut the
@@ -82,8 +86,8 @@ PetscErrorCode InstallInterruptHandlers()
   sa.sa_handler = OnSignal;
   sigemptyset(&sa.sa_mask);
   sa.sa_flags = SA_RESTART;
-  PetscCheck(sigaction(SIGINT, &sa, nullptr) == 0 && sigaction(SIGTERM, &sa, nullptr) == 0, PETSC_COMM_SELF, PETSC_ERR_SYS,
-             "cannot install the SIGINT/SIGTERM handlers");
+  PetscCheck(sigaction(SIGINT, &sa, nullptr) == 0 && sigaction(SIGTERM, &sa, nullptr) == 0 && sigaction(SIGPIPE, &sa, nullptr) == 0,
+             PETSC_COMM_SELF, PETSC_ERR_SYS, "cannot install the SIGINT/SIGTERM/SIGPIPE handlers");
   PetscFunctionReturn(0);
 }
 
@@ -126,6 +130,7 @@ const char *InterruptSignalName()
   switch (g_signal) {
   case SIGINT: return "SIGINT";
   case SIGTERM: return "SIGTERM";
+  case SIGPIPE: return "SIGPIPE";
   case 0: return "";
   default: return "a signal";
   }

@@ -1,5 +1,6 @@
 #include "squeal/energy/energy.h"
 #include "squeal/core/inf.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
 
@@ -25,6 +26,9 @@ PetscErrorCode EnergyAnalysis::SetFromOptions()
                              "EnergyAnalysis", all_modes, &all_modes, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  // -7 ran as -1 (the most unstable mode) without a word.
+  PetscCheck(mode >= -1, comm_, kErrInput, "option -energy_mode = %" PetscInt_FMT ": expected a mode index >= 0, or -1 for the most unstable mode",
+             mode);
   PetscCheck(n_scan >= 2 && samples >= 8 && bisections >= 0 && extend >= 0, comm_, kErrInput,
              "energy: need -energy_n_scan >= 2, -energy_samples >= 8, -energy_bisections >= 0, -energy_extend >= 0");
   PetscFunctionReturn(0);
@@ -62,14 +66,21 @@ PetscReal EnergyAnalysis::Reactions(PetscReal q) const
   return cs.Mu() * sum / ns;
 }
 
-bool EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est) const
+PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool *found) const
 {
+  PetscFunctionBeginUser;
+  *found = false;
   const PetscReal q_max = factor * est.q_sep;
+  // A signal is seen every ~1e7 contact evaluations (0.1 s or less): a fine scan of the reduced
+  // small pad (-energy_n_scan 40000) ran 83 s deaf. Counted, not timed, so every rank polls at
+  // the same point.
+  const PetscInt poll_every = PetscMax((PetscInt)1, (PetscInt)(1e7 / PetscMax((double)(cos_.size() * N_.size()), 1.0)));
   est.q.resize(n_scan);
   est.P_damping.resize(n_scan);
   est.P_reactions.resize(n_scan);
   PetscInt crossing = -1;
   for (PetscInt k = 0; k < n_scan; ++k) {
+    if (k % poll_every == 0) PetscCall(InterruptPoint(comm_, "the energy scan"));
     const PetscReal q  = (k + 1) * q_max / n_scan;
     est.q[k]           = q;
     est.P_damping[k]   = 0.5 * q * q * omega_ * omega_ * cphi_;
@@ -89,13 +100,14 @@ bool EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est) const
     lo = 1e-6 * est.q[0], hi = est.q[0];
     crossing = 0;
   }
-  if (crossing < 0) return false;
+  if (crossing < 0) PetscFunctionReturn(0);
   for (PetscInt i = 0; i < bisections; ++i) {
     const PetscReal mid = 0.5 * (lo + hi);
     (PowerBalance(mid) > 0 ? lo : hi) = mid;
   }
   est.q0 = 0.5 * (lo + hi);
-  return true;
+  *found = true;
+  PetscFunctionReturn(0);
 }
 
 PetscReal EnergyAnalysis::PowerBalance(PetscReal q) const { return Reactions(q) - 0.5 * q * q * omega_ * omega_ * cphi_; }
@@ -178,7 +190,8 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   est.found = false;
   for (est.extensions = 0; est.extensions <= extend; ++est.extensions) {
     est.q_max_factor = q_max_factor * std::ldexp(1.0, (int)est.extensions);
-    if ((est.found = Scan(est.q_max_factor, est))) break;
+    PetscCall(Scan(est.q_max_factor, est, &est.found));
+    if (est.found) break;
   }
   if (!est.found) est.extensions = extend;
   if (est.found) {

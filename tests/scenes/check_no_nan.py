@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Run a squeal command (must exit 0), then check that no dataset and no attribute of its results
-file holds a NaN, and optional attribute values:
-  check_no_nan.py --output F [--attr /group name value]... -- cmd..."""
+file holds a NaN or a large finite sentinel (|x| >= 1e300: PETSC_INFINITY is 4.49e307, where IEEE
+inf is meant), and optional attribute and dataset values:
+  check_no_nan.py --output F [--attr /group name value]... [--dataset /path value]... -- cmd...
+--dataset: every entry of the dataset equals value (e.g. inf)."""
 import argparse
 import os
 import subprocess
@@ -16,6 +18,7 @@ from squeal.results import Results, decode  # noqa: E402
 ap = argparse.ArgumentParser()
 ap.add_argument("--output", required=True)
 ap.add_argument("--attr", nargs=3, action="append", default=[], metavar=("OBJECT", "NAME", "VALUE"))
+ap.add_argument("--dataset", nargs=2, action="append", default=[], metavar=("PATH", "VALUE"))
 ap.add_argument("cmd", nargs=argparse.REMAINDER)
 a = ap.parse_args()
 cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
@@ -29,7 +32,7 @@ bad = []
 
 def numeric_nan(v):
     arr = np.asarray(v)
-    return arr.dtype.kind == "f" and np.isnan(arr).any()
+    return arr.dtype.kind == "f" and (np.isnan(arr).any() or (np.isfinite(arr) & (np.abs(arr) >= 1e300)).any())
 
 
 def visit(name, obj):
@@ -50,6 +53,10 @@ with Results(a.output) as r:
         got = decode(f[obj].attrs[name])
         if str(got) != value and not (np.asarray(got).dtype.kind in "iuf" and float(got) == float(value)):
             bad.append(f"{obj}:{name} = {got!r}, expected {value}")
+    for path, value in a.dataset:
+        got = np.asarray(f[path][()], dtype=float)
+        if got.size == 0 or not (got == float(value)).all():
+            bad.append(f"{path} = {got!r}, expected every entry {value}")
 if bad:
-    sys.exit("NaN or wrong value: " + "; ".join(bad))
-print("no NaN; attributes as expected")
+    sys.exit("NaN, sentinel or wrong value: " + "; ".join(bad))
+print("no NaN, no finite sentinel; attributes and datasets as expected")

@@ -282,6 +282,52 @@ TEST(Verdicts, ChainOf200CellsUnstableByDefaultInItsBand)
   EXPECT_TRUE(part.unstable.empty()); // the unstable modes lie above 89 Hz
 }
 
+// Issue 20 item 2 (every band option): with the shift-and-invert target moved (-stab_pep_target),
+// the converged eigenvalues are those nearest the target, not the smallest; the certificate must be
+// the disc about 0 inside the disc about the target (it claimed "complete up to 100 Hz" on the
+// 200-cell chain with every mode below 35 Hz missing).
+TEST(Verdicts, CertificateWithAMovedTargetMissesNoEigenvalue)
+{
+  ChainParams cp;
+  cp.cells = 60;
+  Model model;
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  SlidingEquilibrium eq;
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  StabilitySolver stab(PETSC_COMM_WORLD);
+  ASSERT_EQ(stab.SetComputeModes(false), 0);
+  ASSERT_EQ(stab.SetFromOptions(), 0);
+  StabilityResult all;
+  ASSERT_EQ(stab.Solve(model, eq, all), 0);
+  ASSERT_TRUE(all.all_eigenvalues);
+
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-stab_pep_target", "3000"), 0);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-stab_fmax", "50"), 0);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-stab_nev_max", "40"), 0);
+  StabilitySolver moved(PETSC_COMM_WORLD);
+  ASSERT_EQ(moved.SetComputeModes(false), 0);
+  const PetscErrorCode ierr = moved.SetFromOptions();
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-stab_pep_target"), 0);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-stab_fmax"), 0);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-stab_nev_max"), 0);
+  ASSERT_EQ(ierr, 0);
+  StabilityResult part;
+  ASSERT_EQ(moved.Solve(model, eq, part), 0);
+  ASSERT_FALSE(part.all_eigenvalues);
+  // The smallest |lambda| of the whole spectrum that the moved table lacks bounds the certificate.
+  double first_missing = 1e300;
+  for (const Mode &m : all.modes) {
+    double best = 1e300;
+    for (const Mode &q : part.modes) best = std::min(best, std::hypot(q.sigma - m.sigma, q.omega - m.omega));
+    if (best > 1e-6 * std::hypot(m.sigma, m.omega)) first_missing = std::min(first_missing, std::hypot(m.sigma, m.omega));
+  }
+  ASSERT_LT(first_missing, 1e300) << "the moved table holds the whole spectrum: no test";
+  EXPECT_LE(part.complete_radius, first_missing);
+  EXPECT_FALSE(part.BandCovered());
+  EXPECT_NE(part.GetVerdict(), StabilityResult::Verdict::Stable);
+}
+
 TEST(Verdicts, SweepTracksOneModeAcrossMu)
 {
   // Case 1 (mu_c = 0.143068, docs/method.md §8): after tracking, one slot holds the unstable mode at

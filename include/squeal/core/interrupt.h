@@ -1,4 +1,5 @@
-// Stopping a long run cleanly on SIGINT / SIGTERM.
+// Stopping a long run cleanly on SIGINT / SIGTERM (and SIGPIPE: the reader of standard output has
+// gone, as after `squeal ... | head`).
 //
 // The application installs handlers once; a signal only sets a flag. Long loops (time steps,
 // Newton iterations, sweep points) poll the flag between steps, stop after the step in hand, and
@@ -13,7 +14,7 @@
 
 namespace squeal {
 
-// Installs the SIGINT and SIGTERM handlers (call once, after PetscInitialize).
+// Installs the SIGINT, SIGTERM and SIGPIPE handlers (call once, after PetscInitialize).
 PetscErrorCode InstallInterruptHandlers();
 
 // Collective on comm: true on every rank if a signal reached any rank, so that all ranks leave

@@ -56,8 +56,9 @@ public:
 
 private:
   PetscReal Reactions(PetscReal q) const;
-  // Scan (0, factor q_sep] and bisect the first + to - crossing; false if there is none.
-  bool      Scan(PetscReal factor, EnergyEstimate &est) const;
+  // Scan (0, factor q_sep] and bisect the first + to - crossing; *found false if there is none.
+  // Collective: polls the interrupt (every rank scans the same replicated points).
+  PetscErrorCode Scan(PetscReal factor, EnergyEstimate &est, bool *found) const;
 
   MPI_Comm                            comm_;
   const ContactSet                   *cs_ = nullptr;
