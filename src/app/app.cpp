@@ -264,7 +264,12 @@ PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, 
     PetscCall(PetscLogStagePop());
     PetscCall(p.sweep.View(sr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(p.sweep.Write(sr, out));
-    PetscCall(Checkpoint(comm, out, "the sweep"));
+    // Stopped by a signal, the sweep keeps its computed points and says how many.
+    const size_t      done = (size_t)std::count_if(sr.failed.begin(), sr.failed.end(), [](PetscInt f) { return f != 2; });
+    const std::string what = sr.interrupted ? "the sweep's points so far (" + std::to_string(done) + " of " + std::to_string(sr.failed.size()) +
+                                                ", the rest marked 2 in /sweep/failed)"
+                                            : std::string("the sweep");
+    PetscCall(Checkpoint(comm, out, what.c_str()));
   }
   if (req.energy) PetscCall(RunEnergyAndCycle(p, req, out, st));
   if (req.transient) {

@@ -356,10 +356,19 @@ PetscErrorCode Continuation::Polish(const State &y, ContinuationPoint &pt, State
       pt.max_growth           = sres.MaxOscillatorySigma();
     }
   }
+  // The point's Newton iterations and Floquet multipliers are most of its time: a signal there
+  // fails this point only (the branch so far is kept) and the leg stops at its next poll.
+  shoot_->interruptible = true;
   PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
   err = shoot_->Solve(*model_, eq, *ti_, y.U, y.dU, y.T, sr);
   PetscCall(PetscPopErrorHandler());
+  shoot_->interruptible = false;
   flows_ += sr.flow_evaluations;
+  if (err == PETSC_ERR_SIG) { // collective: InterruptPoint decides on every rank alike
+    interrupted_ = true;
+    why          = std::string("interrupted by ") + InterruptSignalName();
+    PetscFunctionReturn(0);
+  }
   if (err || !sr.converged) {
     why = "shooting at the corrected point: " + (sr.reason.empty() ? std::string("error ") + std::to_string(err) : sr.reason);
     PetscFunctionReturn(0);
@@ -390,7 +399,7 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
   end = "-cont_max_steps points";
   bool      have_prev  = false;
   PetscReal last_ratio = -1; // predictor error / ds of the last rejected try of this step
-  PetscReal amp_start = -1;
+  PetscReal amp_start = -1, growth_start = -1;
   while ((PetscInt)pts.size() < max_steps) {
     PetscReal nt;
     // SIGINT/SIGTERM: stop between points; the points so far are the result.
@@ -440,7 +449,7 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
                                 100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, (double)pt.LargestNonTrivial(),
                                 pt.stable_cycle ? "stable" : "UNSTABLE"));
         end = "reached the end of the range";
-      } else end = "the shooting solve on the end of the range failed: " + why;
+      } else end = interrupted_ ? why : "the shooting solve on the end of the range failed: " + why;
       break;
     }
     PetscInt    its = 0;
@@ -497,10 +506,23 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
                             dir > 0 ? '+' : '-', pts.size(), param.c_str(), (double)pt.param, (double)pt.period, (double)pt.amplitude,
                             100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, (double)pt.LargestNonTrivial(),
                             pt.stable_cycle ? "stable" : "UNSTABLE", its, (double)h, (double)pt.seconds));
-    if (amp_start < 0) amp_start = pt.amplitude;
-    // The cycle shrinking onto the equilibrium: the Hopf point, where this branch is born.
+    if (amp_start < 0) amp_start = pt.amplitude, growth_start = pt.max_growth;
+    // The cycle shrinking onto the equilibrium: the Hopf point, where this branch is born. There
+    // the equilibrium's growth rate goes to zero with the amplitude (as its square at a smooth
+    // Hopf point; 1e-3 of the leg's first at the 3-DOF branches' ends); a growth rate still a
+    // quarter of the first's means -cont_min_amplitude stopped a branch that goes on.
     if (pt.amplitude < min_amplitude * amp_start) {
-      end = "the cycle shrank onto the sliding equilibrium (Hopf point)";
+      if (pt.equilibrium_unstable < 0) end = "the cycle shrank below -cont_min_amplitude of the leg's first (equilibrium not computed: -cont_equilibrium 0)";
+      else if (pt.equilibrium_unstable == 0 || !(growth_start > 0) || pt.max_growth < 0.25 * growth_start)
+        end = "the cycle shrank onto the sliding equilibrium (Hopf point)";
+      else {
+        char b[320];
+        std::snprintf(b, sizeof b,
+                      "the amplitude fell below -cont_min_amplitude = %g of the leg's first, but the sliding equilibrium's growth rate "
+                      "is still %.3g 1/s (%.0f %% of the first's): not a Hopf point; lower -cont_min_amplitude",
+                      (double)min_amplitude, (double)pt.max_growth, 100 * (double)(pt.max_growth / growth_start));
+        end = b;
+      }
       break;
     }
     PetscCall(Copy(last, prev));

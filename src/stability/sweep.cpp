@@ -17,6 +17,38 @@ namespace {
 
 constexpr PetscReal kNaN = std::numeric_limits<PetscReal>::quiet_NaN();
 
+// Track modes along mu at each V: the slots of point i + 1 are reordered so that slot s holds the
+// eigenvalue nearest (greedy over all pairs, in the complex plane) to slot s of point i; a mode's
+// growth rate can then be followed across mu, also where frequencies cross.
+void TrackModes(std::vector<PetscReal> &table, PetscInt k, PetscInt mu_n, PetscInt v_n)
+{
+  for (PetscInt iv = 0; iv < v_n; ++iv)
+    for (PetscInt i = 1; i < mu_n; ++i) {
+      const PetscReal *prev = &table[((iv * mu_n + i - 1) * k) * 2];
+      PetscReal       *cur  = &table[((iv * mu_n + i) * k) * 2];
+      std::vector<std::pair<PetscReal, std::pair<PetscInt, PetscInt>>> pairs;
+      for (PetscInt a = 0; a < k; ++a)
+        for (PetscInt b = 0; b < k; ++b)
+          if (!std::isnan(prev[2 * a]) && !std::isnan(cur[2 * b]))
+            pairs.push_back({std::hypot(prev[2 * a] - cur[2 * b], prev[2 * a + 1] - cur[2 * b + 1]), {a, b}});
+      std::sort(pairs.begin(), pairs.end());
+      std::vector<PetscInt> dest(k, -1), used(k, 0);
+      for (const auto &pr : pairs) {
+        const PetscInt a = pr.second.first, b = pr.second.second;
+        if (used[a] || dest[b] >= 0) continue;
+        dest[b] = a, used[a] = 1;
+      }
+      for (PetscInt b = 0, a = 0; b < k; ++b) // the rest (and empty slots) into free slots, in order
+        if (dest[b] < 0) {
+          while (used[a]) ++a;
+          dest[b] = a, used[a] = 1;
+        }
+      std::vector<PetscReal> moved(2 * k);
+      for (PetscInt b = 0; b < k; ++b) moved[2 * dest[b]] = cur[2 * b], moved[2 * dest[b] + 1] = cur[2 * b + 1];
+      std::copy(moved.begin(), moved.end(), cur);
+    }
+}
+
 } // namespace
 
 PetscReal SweepResult::MaxSigma(size_t iv, size_t imu) const
@@ -128,34 +160,7 @@ PetscErrorCode SweepSolver::Solve(const SweepPoint &point, SweepResult &res)
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, filled.data(), (int)filled.size(), MPIU_REAL, MPIU_SUM, comm_));
   for (size_t s = 0; s < filled.size(); ++s)
     if (filled[s] == 0) table[2 * s] = table[2 * s + 1] = kNaN;
-  // Track modes along mu at each V: the slots of point i + 1 are reordered so that slot s holds
-  // the eigenvalue nearest (greedy over all pairs, in the complex plane) to slot s of point i;
-  // a mode's growth rate can then be followed across mu, also where frequencies cross.
-  for (PetscInt iv = 0; iv < v_n_; ++iv)
-    for (PetscInt i = 1; i < mu_n_; ++i) {
-      const PetscReal *prev = &table[((iv * mu_n_ + i - 1) * res.k) * 2];
-      PetscReal       *cur  = &table[((iv * mu_n_ + i) * res.k) * 2];
-      std::vector<std::pair<PetscReal, std::pair<PetscInt, PetscInt>>> pairs;
-      for (PetscInt a = 0; a < res.k; ++a)
-        for (PetscInt b = 0; b < res.k; ++b)
-          if (!std::isnan(prev[2 * a]) && !std::isnan(cur[2 * b]))
-            pairs.push_back({std::hypot(prev[2 * a] - cur[2 * b], prev[2 * a + 1] - cur[2 * b + 1]), {a, b}});
-      std::sort(pairs.begin(), pairs.end());
-      std::vector<PetscInt> dest(res.k, -1), used(res.k, 0);
-      for (const auto &pr : pairs) {
-        const PetscInt a = pr.second.first, b = pr.second.second;
-        if (used[a] || dest[b] >= 0) continue;
-        dest[b] = a, used[a] = 1;
-      }
-      for (PetscInt b = 0, a = 0; b < res.k; ++b) // the rest (and empty slots) into free slots, in order
-        if (dest[b] < 0) {
-          while (used[a]) ++a;
-          dest[b] = a, used[a] = 1;
-        }
-      std::vector<PetscReal> moved(2 * res.k);
-      for (PetscInt b = 0; b < res.k; ++b) moved[2 * dest[b]] = cur[2 * b], moved[2 * dest[b] + 1] = cur[2 * b + 1];
-      std::copy(moved.begin(), moved.end(), cur);
-    }
+  TrackModes(table, res.k, mu_n_, v_n_);
   res.eigenvalues = std::move(table);
 
   // Critical mu per V: bracket on the grid, then bisection on the owning rank.

@@ -71,6 +71,7 @@ def signal_after(cmd, out, pattern, which="INT"):
     print("".join(seen) + rest)
     print("--- stderr:\n" + err)
     print(f"stopped {time.time() - t0:.2f} s after {name}")
+    signal_after.stderr = err  # for checks of the message's details
     ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127 (clean stop, not killed)")
     ok(re.search(r"^squeal: error: interrupted by " + name, err, re.M) is not None, f"stderr says 'interrupted by {name}'")
     ok(out in err, "the message names the results file")
@@ -116,6 +117,9 @@ def sweep_interrupt(args, cmd):
         ok(np.all(np.isfinite(ev[failed == 0][..., 0][:, 0])), "every computed point has its eigenvalues")
         ok(np.all(np.isnan(ev[failed == 2])), "no eigenvalue at a point not computed")
         ok(int(r.h5["sweep"].attrs["interrupted"]) == 1, "/sweep interrupted = 1")
+        m = re.search(r"the sweep's points so far \((\d+) of (\d+),", signal_after.stderr)
+        ok(m is not None and int(m.group(1)) == failed.size - skipped and int(m.group(2)) == failed.size,
+           f"the message counts the points computed ({m.group(0) if m else 'no count in it'})")
         ok(np.all(np.isnan(np.asarray(r.h5["sweep"].attrs["critical_mu"]))), "no critical mu from a grid with holes")
 
 

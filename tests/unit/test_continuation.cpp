@@ -303,3 +303,29 @@ TEST(Continuation, AFailedStepHalvesTheStepAndKeepsTheBranch)
   EXPECT_EQ(res.points.back().param, 0.6);
   for (size_t i = 1; i < res.points.size(); ++i) EXPECT_GT(res.points[i].param, res.points[i - 1].param);
 }
+
+TEST(Continuation, AnAmplitudeStopFarFromMuCIsNotCalledAHopfPoint)
+{
+  // Issue 20 item 8: -cont_min_amplitude 0.99 stops the leg towards mu_c = 0.143068 after a few
+  // points, with the equilibrium still strongly unstable: not the Hopf point. With the default
+  // (0.02) the leg reaches mu_c, and that end is the Hopf point.
+  for (const double amin : {0.99, 0.02}) {
+    Problem pr(3.0, 0.5);
+    ASSERT_EQ(pr.err, 0);
+    Continuation c(PETSC_COMM_WORLD);
+    ASSERT_EQ(c.SetFromOptions(), 0);
+    c.lmin = 0.1, c.lmax = 0.5, c.min_amplitude = amin;
+    ContinuationResult res;
+    ASSERT_EQ(RunBranch(pr, c, res), 0);
+    ASSERT_GE(res.leg_end.size(), 1u);
+    const std::string &down = res.leg_end[0];
+    const PetscReal    lowest = res.points.front().param;
+    if (amin > 0.5) {
+      EXPECT_NE(down.find("not a Hopf point"), std::string::npos) << down;
+      EXPECT_GT(lowest, 0.3) << "stopped early";
+    } else {
+      EXPECT_NE(down.find("(Hopf point)"), std::string::npos) << down;
+      EXPECT_LT(lowest - 0.143068, 1e-3);
+    }
+  }
+}
