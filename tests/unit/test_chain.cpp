@@ -146,21 +146,15 @@ TEST(Sweep, UndampedPlanarCriticalMuIsKtbOverKnb)
 // The positive definiteness of M is checked by the LDL^T pivots; a lumped (diagonal) mass is
 // definite by its positive diagonal, and the LDL^T was not free: MUMPS's PORD ordering of the
 // edgeless graph took 61 s of a 30000-cell chain's set-up, during which no signal was seen.
-TEST(Chain, LumpedMassOfALongChainNeedsNoFactorisation)
+TEST(Chain, LumpedMassIsCheckedByItsDiagonal)
 {
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size > 1) GTEST_SKIP() << "one rank is enough for a set-up time";
+  // The diagonal path of Model::Validate: a positive lumped mass accepted, the same mass scaled by
+  // -1 refused by name. (Its cost on 30000 cells, 68 s -> 1.2 s, is a measurement for
+  // docs/records.md, not a timed test.)
   ChainParams p;
-  p.cells = 30000;
-  Model          model;
-  PetscLogDouble t0, t1;
-  ASSERT_EQ(PetscTime(&t0), 0);
+  p.cells = 2000;
+  Model model;
   ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, p, model), 0); // validates M, K, C and the contacts
-  ASSERT_EQ(PetscTime(&t1), 0);
-  std::printf("30000-cell chain built and validated in %.2f s\n", t1 - t0);
-  EXPECT_LT(t1 - t0, 15.0);
-  // Scaled by -1 the same diagonal mass is refused by name.
   ASSERT_EQ(MatScale(model.M, -1.0), 0);
   ASSERT_EQ(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr), 0);
   const PetscErrorCode ierr = model.Validate();

@@ -66,6 +66,25 @@ double LinearRate(const Mode &m) { return std::expm1(m.sigma * m.Period()); }
 
 } // namespace
 
+namespace {
+
+// The default spectrum of a chain's sliding equilibrium (eigenvalues only), with its model and
+// equilibrium, for the tests that compare a partial table with it.
+void ChainSpectrum(PetscInt cells, Model &model, SlidingEquilibrium &eq, StabilityResult &all)
+{
+  ChainParams cp;
+  cp.cells = cells;
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+  EquilibriumSolver eqs(PETSC_COMM_WORLD);
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  StabilitySolver stab(PETSC_COMM_WORLD);
+  ASSERT_EQ(stab.SetComputeModes(false), 0);
+  ASSERT_EQ(stab.SetFromOptions(), 0);
+  ASSERT_EQ(stab.Solve(model, eq, all), 0);
+}
+
+} // namespace
+
 TEST(Verdicts, SettledCyclesAreSettledWithTheirPeriod)
 {
   SERIAL_ONLY();
@@ -239,18 +258,10 @@ TEST(Verdicts, ChainOf200CellsUnstableByDefaultInItsBand)
   PetscMPIInt size;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
   if (size > 1) GTEST_SKIP() << "the same numbers as on one rank; 2 ranks double the cost";
-  ChainParams cp;
-  cp.cells = 200;
-  Model model;
-  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
-  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  Model              model;
   SlidingEquilibrium eq;
-  ASSERT_EQ(eqs.Solve(model, eq), 0);
-  StabilitySolver stab(PETSC_COMM_WORLD);
-  ASSERT_EQ(stab.SetComputeModes(false), 0);
-  ASSERT_EQ(stab.SetFromOptions(), 0);
-  StabilityResult all;
-  ASSERT_EQ(stab.Solve(model, eq, all), 0);
+  StabilityResult    all;
+  ASSERT_NO_FATAL_FAILURE(ChainSpectrum(200, model, eq, all));
   EXPECT_TRUE(all.BandCovered());
   EXPECT_EQ(all.unstable.size(), 57u);
   for (PetscInt i : all.unstable) {
@@ -288,18 +299,10 @@ TEST(Verdicts, ChainOf200CellsUnstableByDefaultInItsBand)
 // 200-cell chain with every mode below 35 Hz missing).
 TEST(Verdicts, CertificateWithAMovedTargetMissesNoEigenvalue)
 {
-  ChainParams cp;
-  cp.cells = 60;
-  Model model;
-  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
-  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  Model              model;
   SlidingEquilibrium eq;
-  ASSERT_EQ(eqs.Solve(model, eq), 0);
-  StabilitySolver stab(PETSC_COMM_WORLD);
-  ASSERT_EQ(stab.SetComputeModes(false), 0);
-  ASSERT_EQ(stab.SetFromOptions(), 0);
-  StabilityResult all;
-  ASSERT_EQ(stab.Solve(model, eq, all), 0);
+  StabilityResult    all;
+  ASSERT_NO_FATAL_FAILURE(ChainSpectrum(60, model, eq, all));
   ASSERT_TRUE(all.all_eigenvalues);
 
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-stab_pep_target", "3000"), 0);
