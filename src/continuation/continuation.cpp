@@ -246,6 +246,27 @@ PetscErrorCode Continuation::FillPoint(const ShootingResult &sr, ContinuationPoi
 
 PetscErrorCode Continuation::Corrector(const State &last, const State &pred, const State &t, State &y, PetscInt *its, std::string &why)
 {
+  PetscFunctionBeginUser;
+  // The corrector's flows and GMRES products poll the signal inside each period integration (on
+  // a fine step a flow takes seconds): a signal there fails this step only, and the leg stops
+  // with its points so far.
+  shoot_->interruptible = true;
+  PetscCall(PushErrorHandlerQuietOnSignal());
+  const PetscErrorCode err = CorrectorIterations(last, pred, t, y, its, why);
+  PetscCall(PetscPopErrorHandler());
+  shoot_->interruptible = false;
+  if (err == PETSC_ERR_SIG) { // collective: InterruptPoint decides on every rank alike
+    interrupted_ = true;
+    why          = std::string("interrupted by ") + InterruptSignalName();
+    PetscFunctionReturn(0);
+  }
+  PetscCall(err);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Continuation::CorrectorIterations(const State &last, const State &pred, const State &t, State &y, PetscInt *its,
+                                                 std::string &why)
+{
   std::vector<PetscReal> hist;
   State                  d;
   PetscFunctionBeginUser;

@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Checks of the continuation's results file (issue 11).
 
-  check_continuation.py interrupt --output F [--signal INT|TERM] [--after-points K] -- cmd...
-      Starts cmd (with -cont_monitor), waits for the K-th point line of the first leg (default 3),
-      sends the signal, and checks: exit code in 1..127, stderr names the signal and F, root status
+  check_continuation.py interrupt --output F [--signal INT|TERM] [--after-points K] [--wait S]
+                        [--within S] -- cmd...
+      Starts cmd (with -cont_monitor), waits for the K-th point line of the first leg (default 3)
+      and S seconds more (default 0), sends the signal, and checks: the stop within --within
+      seconds (if given), exit code in 1..127, stderr names the signal and F, root status
       "interrupted ...", /continuation holds at least K + 1 points (start included) with finite
       periods, attribute interrupted = 1.
   check_continuation.py branch --output F --param mu|v --min A --max B [--event TYPE[@LO:HI]]... -- cmd...
@@ -41,7 +43,8 @@ def parse(argv):
 def interrupt(args, cmd):
     out = args["--output"]
     k = int(args.get("--after-points", "3"))
-    name = signal_after(cmd, out, r"^cont [+-]\s*%d:" % k, args.get("--signal", "INT"))
+    within = float(args["--within"]) if "--within" in args else None
+    name = signal_after(cmd, out, r"^cont [+-]\s*%d:" % k, args.get("--signal", "INT"), float(args.get("--wait", "0")), within)
     if not ok(os.path.exists(out), f"{out} exists"):
         return
     with Results(out) as r:

@@ -48,10 +48,10 @@ def no_temporaries(out):
     ok(not left, f"no temporary file left beside {b} ({left})")
 
 
-def signal_after(cmd, out, pattern, which="INT"):
-    """Runs cmd, sends SIGINT (or SIGTERM) once a stdout line matches `pattern`, and checks the
-    clean stop: exit code, the message naming the signal and the results file. Returns the
-    signal's name."""
+def signal_after(cmd, out, pattern, which="INT", wait=0.0, within=None):
+    """Runs cmd, sends SIGINT (or SIGTERM) `wait` seconds after a stdout line matches `pattern`,
+    and checks the clean stop: exit code, the message naming the signal and the results file, and
+    (if `within` is given) the stop within that many seconds. Returns the signal's name."""
     if os.path.exists(out):
         os.remove(out)
     sig = signal.SIGTERM if which == "TERM" else signal.SIGINT
@@ -64,13 +64,17 @@ def signal_after(cmd, out, pattern, which="INT"):
         seen.append(line)
         if pat.search(line):
             break
-    ok(p.poll() is None, f"still running when a line matched /{pattern}/")
+    time.sleep(wait)
+    ok(p.poll() is None, f"still running {wait} s after a line matched /{pattern}/")
     t0 = time.time()
     p.send_signal(sig)
     rest, err = p.communicate(timeout=120)
+    dt = time.time() - t0
     print("".join(seen) + rest)
     print("--- stderr:\n" + err)
-    print(f"stopped {time.time() - t0:.2f} s after {name}")
+    print(f"stopped {dt:.2f} s after {name}")
+    if within is not None:
+        ok(dt <= within, f"stopped {dt:.2f} s after {name} (<= {within} s)")
     signal_after.stderr = err  # for checks of the message's details
     ok(0 < p.returncode < 128, f"exit code {p.returncode} in 1..127 (clean stop, not killed)")
     ok(re.search(r"^squeal: error: interrupted by " + name, err, re.M) is not None, f"stderr says 'interrupted by {name}'")

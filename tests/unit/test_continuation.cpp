@@ -5,6 +5,7 @@
 // step and keeps the branch.
 #include "squeal/app/pipeline.h"
 #include "squeal/continuation/continuation.h"
+#include "squeal/core/errors.h"
 #include "squeal/energy/energy.h"
 #include "squeal/integration/transient.h"
 #include "squeal/model/builders.h"
@@ -328,4 +329,36 @@ TEST(Continuation, AnAmplitudeStopFarFromMuCIsNotCalledAHopfPoint)
       EXPECT_LT(lowest - 0.143068, 1e-3);
     }
   }
+}
+
+namespace {
+PetscErrorCode Raise(PetscErrorCode code, const char *what)
+{
+  PetscFunctionBeginUser;
+  SETERRQ(PETSC_COMM_SELF, code, "%s", what);
+}
+} // namespace
+
+// The corrector's guard (PushErrorHandlerQuietOnSignal): a signal's PETSC_ERR_SIG reaches the
+// caller silently (it keeps the branch and reports the interrupt once), any other error is still
+// reported in the one-line form, with its own message.
+TEST(Continuation, CorrectorGuardIsQuietOnSignalsOnly)
+{
+  ASSERT_EQ(PushErrorHandler(), 0);
+  ASSERT_EQ(PushErrorHandlerQuietOnSignal(), 0);
+  testing::internal::CaptureStderr();
+  const PetscErrorCode sig = Raise(PETSC_ERR_SIG, "interrupted by SIGTERM during a period integration");
+  const std::string    quiet = testing::internal::GetCapturedStderr();
+  testing::internal::CaptureStderr();
+  const PetscErrorCode user = Raise(PETSC_ERR_USER, "the model is singular");
+  const std::string    loud = testing::internal::GetCapturedStderr();
+  ASSERT_EQ(PetscPopErrorHandler(), 0);
+  ASSERT_EQ(PetscPopErrorHandler(), 0);
+  EXPECT_EQ(sig, PETSC_ERR_SIG);
+  EXPECT_EQ(quiet, "");
+  EXPECT_EQ(user, PETSC_ERR_USER);
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  // PETSC_COMM_SELF: every rank prints its own.
+  EXPECT_EQ(loud, "squeal: error: the model is singular\n") << "rank " << rank;
 }

@@ -136,6 +136,8 @@ private:
   PetscErrorCode RunSlices(ContinuationResult &res);
   bool           down_only_ = false; // a slice: from its upper end towards -cont_min only
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
+  PetscErrorCode CorrectorIterations(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its,
+                                     std::string &why);
   // Shooting::Solve at y.lambda from y, with the equilibrium (and its stability) there.
   PetscErrorCode Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why);
   PetscErrorCode Leg(int dir, const State &start, std::vector<ContinuationPoint> &pts, std::vector<State> &sts, std::string &end);

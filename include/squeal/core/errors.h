@@ -14,6 +14,11 @@ namespace squeal {
 // Installs the one-line handler (or PETSc's traceback handler if -squeal_traceback is set).
 PetscErrorCode PushErrorHandler();
 
+// For a solve that a signal may stop (InterruptPoint raises PETSC_ERR_SIG) where the caller keeps
+// what was computed: PETSC_ERR_SIG passes silently to the caller, every other error is reported
+// as PushErrorHandler's handler does. Pop with PetscPopErrorHandler.
+PetscErrorCode PushErrorHandlerQuietOnSignal();
+
 // Errors whose message is meant for the user (bad input); they are never internal failures.
 constexpr PetscErrorCode kErrInput = PETSC_ERR_USER_INPUT;
 
