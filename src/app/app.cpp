@@ -232,7 +232,9 @@ PetscErrorCode ShootOrSettle(Pipeline &p, io::H5Writer &out, const Stages &st)
     PetscFunctionReturn(0);
   }
   PetscCall(Checkpoint(comm, out, "the pre-periods"));
-  PetscCall(Settle(p, route.U, route.dU, route.U.empty() ? "the mode" : "the pre-periods' end state", out, st));
+  const bool from_mode = route.U.empty() || p.steady.from_mode;
+  if (from_mode) route.U.clear(), route.dU.clear();
+  PetscCall(Settle(p, route.U, route.dU, from_mode ? "the mode" : "the pre-periods' end state", out, st));
   PetscFunctionReturn(0);
 }
 

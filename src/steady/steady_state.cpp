@@ -214,6 +214,12 @@ Levels BatchLevels(const std::vector<double> &x, long batches)
   L.rms_lo          = std::sqrt(std::max(bm - half, 0.0));
   L.rms_hi          = std::sqrt(bm + half);
   L.rel_halfwidth   = L.rms > 0 ? (L.rms_hi - L.rms_lo) / (2 * L.rms) : 0.0;
+  double sxy = 0, sxx = 0;
+  for (size_t k = 0; k < nb; ++k) {
+    const double c = (double)k - 0.5 * (double)(nb - 1);
+    sxy += c * (b[k] - bm), sxx += c * c;
+  }
+  L.drift = bm > 0 ? std::abs(sxy / sxx) * (double)nb / bm / 2 : 0.0;
   return L;
 }
 
@@ -382,7 +388,7 @@ PetscErrorCode SteadyState::SetFromOptions()
   PetscBool    mon = PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm_, "steady_", "Statistical steady state (levels and spectrum of a transient without a periodic orbit)", "SteadyState");
-  SquealOptionsReal("-rtol", "Converged: the 95 % interval of the RMS (signal DOF and total normal reaction) has a half-width below this (relative)",
+  SquealOptionsReal("-rtol", "Converged: the 95 % interval of the RMS has a half-width, and the RMS a drift over the record, below this (relative; signal DOF and total normal reaction)",
                     "SteadyState", &rtol, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-batches", "Batches for the batch-means interval (Student t)", "SteadyState", batches, &batches, nullptr));
   SquealOptionsReal("-chunk_periods", "The transient runs on in chunks of this many periods of the starting mode until converged",
@@ -392,6 +398,9 @@ PetscErrorCode SteadyState::SetFromOptions()
   PetscCall(PetscOptionsInt("-dof", "DOF whose levels and spectrum are computed (-1: the one the transient's cycle summary reads, "
                                     "the DOF that moves most)",
                             "SteadyState", dof, &dof, nullptr));
+  PetscCall(PetscOptionsBool("-from_mode",
+                             "-analyses auto's statistical route starts from the mode (as the transient) instead of the pre-periods' end state",
+                             "SteadyState", from_mode, &from_mode, nullptr));
   PetscCall(PetscOptionsName("-monitor", "After each chunk: the start-up cut, levels, lines and verdict so far ([viewer], default stdout)",
                              "SteadyState", &mon));
   PetscCall(PetscOptionsName("-view", "The result after the run ([viewer])", "SteadyState", nullptr));
@@ -422,7 +431,8 @@ PetscErrorCode SteadyState::Analyse(SteadyStateResult &res) const
       const std::vector<double> r(res.rn.begin() + (long)res.signal.cut, res.rn.end());
       res.normal = steady::BatchLevels(r, batches);
     }
-    conv = res.signal.levels.rms > 0 && res.signal.levels.rel_halfwidth < rtol && (res.rn.empty() || res.normal.rel_halfwidth < rtol);
+    const steady::Levels &L = res.signal.levels, &R = res.normal;
+    conv = L.rms > 0 && L.rel_halfwidth < rtol && L.drift < rtol && (res.rn.empty() || (R.rel_halfwidth < rtol && R.drift < rtol));
   }
   PetscCallMPI(MPI_Bcast(&conv, 1, MPI_INT, 0, comm_));
   res.converged = conv;
@@ -508,9 +518,14 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     PetscCall(Analyse(res));
     const steady::Levels &L = res.signal.levels;
     char nr[64] = "";
-    if (!res.rn.empty()) std::snprintf(nr, sizeof nr, ", normal reaction's +- %.1f %%", 100 * (double)res.normal.rel_halfwidth);
-    PetscCall(PetscPrintf(comm_, "steady state: chunk %" PetscInt_FMT ", %.0f periods (t = %.4g s): RMS of DOF %" PetscInt_FMT " %.4e +- %.1f %%%s: %s\n",
-                          k + 1, (double)res.periods, (double)elapsed, res.dof, (double)L.rms, 100 * (double)L.rel_halfwidth, nr,
+    if (!res.rn.empty())
+      std::snprintf(nr, sizeof nr, "; normal reaction's +- %.1f %%, drift %.1f %%", 100 * (double)res.normal.rel_halfwidth,
+                    100 * (double)res.normal.drift);
+    PetscCall(PetscPrintf(comm_,
+                          "steady state: chunk %" PetscInt_FMT ", %.0f periods (t = %.4g s): RMS of DOF %" PetscInt_FMT
+                          " %.4e +- %.1f %%, drift %.1f %%%s: %s\n",
+                          k + 1, (double)res.periods, (double)elapsed, res.dof, (double)L.rms, 100 * (double)L.rel_halfwidth,
+                          100 * (double)L.drift, nr,
                           res.converged ? "converged" : (k + 1 >= max_chunks ? "budget reached" : "running on")));
     if (monitor_) {
       PetscCall(PetscViewerPushFormat(monitor_, monitor_format_));
@@ -541,13 +556,13 @@ PetscErrorCode SteadyState::View(const SteadyStateResult &res, PetscViewer viewe
                                    " chunk(s), %zu records, start-up dropped before t = %.6g s (MSER on the power per period)\n",
                                    res.dof, res.start.c_str(), (double)res.periods, (double)res.T_ref, res.chunks, res.t.size(), tcut));
   PetscCall(PetscViewerASCIIPushTab(viewer));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "RMS %.4e (95 %% interval %.4e to %.4e, half-width %.1f %%), peak %.4e: %s\n", L.rms, L.rms_lo,
-                                   L.rms_hi, 100 * L.rel_halfwidth, L.peak,
+  PetscCall(PetscViewerASCIIPrintf(viewer, "RMS %.4e (95 %% interval %.4e to %.4e, half-width %.1f %%, drift over the record %.1f %%), peak %.4e: %s\n",
+                                   L.rms, L.rms_lo, L.rms_hi, 100 * L.rel_halfwidth, 100 * L.drift, L.peak,
                                    res.converged ? "converged" : "NOT converged (raise -steady_max_periods)"));
   if (!res.rn.empty())
     PetscCall(PetscViewerASCIIPrintf(viewer,
-                                     "total normal reaction: mean %.6g N, RMS about it %.4e N (95 %% interval %.4e to %.4e), peak %.4e N\n",
-                                     res.normal.mean, res.normal.rms, res.normal.rms_lo, res.normal.rms_hi, res.normal.peak));
+                                     "total normal reaction: mean %.6g N, RMS about it %.4e N (95 %% interval %.4e to %.4e, drift %.1f %%), peak %.4e N\n",
+                                     res.normal.mean, res.normal.rms, res.normal.rms_lo, res.normal.rms_hi, 100 * res.normal.drift, res.normal.peak));
   std::vector<size_t> order(a.lines.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](size_t p, size_t q) { return a.amplitudes[p] > a.amplitudes[q]; });
@@ -594,6 +609,7 @@ PetscErrorCode SteadyState::Write(const SteadyStateResult &res, io::H5Writer &ou
   PetscCall(out.WriteAttribute(g, "rms_hi", (PetscReal)L.rms_hi));
   PetscCall(out.WriteAttribute(g, "peak", (PetscReal)L.peak));
   PetscCall(out.WriteAttribute(g, "converged", (PetscInt)res.converged));
+  PetscCall(out.WriteAttribute(g, "drift", (PetscReal)L.drift));
   PetscCall(out.WriteAttribute(g, "verdict", a.cls.verdict.c_str()));
   PetscCall(out.WriteAttribute(g, "evidence", a.cls.evidence.c_str()));
   PetscCall(out.WriteAttribute(g, "bases", std::vector<PetscReal>(a.cls.bases.begin(), a.cls.bases.end())));

@@ -10,8 +10,9 @@
 //   levels    RMS about the mean and peak |x - xbar| of what remains; the 95 % interval of the mean
 //             square from B batch means b_k of (x - xbar)^2, mean(b) +- t_{0.975, B-1} s_b / sqrt(B)
 //             (Student t, the largest tabulated degree of freedom not above B - 1: conservative),
-//             its square roots bracketing the RMS; converged when (hi - lo) / (2 RMS) < rtol for
-//             both signals;
+//             its square roots bracketing the RMS; converged when (hi - lo) / (2 RMS) < rtol and
+//             the RMS's drift (the least-squares trend of the batch means over the record,
+//             relative) < rtol, for both signals;
 //   spectrum  Welch's PSD: Hann window (numpy's symmetric one), 50 % overlap, segments of
 //             L = max(16, 2n/9) records, one-sided;
 //   lines     the PSD's local maxima above 100x its median, each refined on the whole record's
@@ -47,6 +48,10 @@ size_t DominantPeriodRecords(const std::vector<double> &x);
 
 struct Levels {
   double mean = 0, rms = 0, peak = 0, rms_lo = 0, rms_hi = 0, rel_halfwidth = 0;
+  // The RMS's relative change over the record from the least-squares line through the batch means
+  // of the square: |slope| B / mean / 2. The interval assumes a stationary record; a slow trend
+  // (a start-up longer than MSER's half) narrows it without making it right.
+  double drift = 0;
 };
 Levels BatchLevels(const std::vector<double> &x, long batches);
 
@@ -112,6 +117,10 @@ public:
 
   PetscReal rtol = 0.05, chunk_periods = 50, max_periods = 1000;
   PetscInt  batches = 20, dof = -1;
+  // -steady_from_mode: after -analyses auto chose this route, start from the mode (as -analyses
+  // steady) instead of the pre-periods' end state (which the energy estimate may have put far above
+  // the motion: the small pad at V = 10 m/s, docs/steady-state.md).
+  PetscBool from_mode = PETSC_FALSE;
 
 private:
   MPI_Comm    comm_;
