@@ -142,7 +142,14 @@ def classify(f, amp, power_in_lines, total_power, df_res):
         share = power_in_lines / total_power if total_power else 0.0
         return "broadband", [], [], f"lines carry {share:.0%} of the power (< 50 %)"
     order = np.argsort(-amp)
-    bases = [f[order[0]]]
+    # The base: the strongest line, or the lowest line of which it is a harmonic (a wave whose second
+    # harmonic is the stronger is periodic in the lower one, not a second base at half the first).
+    f1, top = f[order[0]], f[order[0]]
+    for i in order:
+        k = round(top / f[i])
+        if f[i] < f1 and k >= 2 and abs(top - k * f[i]) <= max(3 * df_res, 1e-9 * top):
+            f1 = f[i]
+    bases = [f1]
     names = {}
 
     def name_of(g, bases):

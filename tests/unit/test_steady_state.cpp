@@ -91,6 +91,15 @@ TEST(SteadyState, AWaveWithHarmonicsIsPeriodic)
   EXPECT_NEAR(a.levels.rms, std::sqrt(1.1 / 2), 2e-3);
 }
 
+TEST(SteadyState, AWaveWhoseSecondHarmonicIsStrongerIsPeriodicInItsFundamental)
+{
+  const auto x = Signal([](double t) { return 0.4 * std::sin(2 * M_PI * 777.7 * t) + std::sin(4 * M_PI * 777.7 * t + 0.5); });
+  const steady::Analysis a = steady::Analyse(x, kStep, 20);
+  EXPECT_EQ(a.cls.verdict, "periodic") << a.cls.evidence;
+  ASSERT_EQ(a.cls.bases.size(), 1u);
+  EXPECT_LT(std::abs(a.cls.bases[0] / 777.7 - 1), 1e-7);
+}
+
 TEST(SteadyState, WhiteNoiseIsBroadband)
 {
   std::mt19937                     gen(1);
