@@ -219,7 +219,7 @@ TEST(SteadyState, ThePipelineSettlesStatisticallyOnAnIrregularPad)
         EXPECT_GT(L.rms, 0);
         EXPECT_LE(L.rms_lo, L.rms);
         EXPECT_GE(L.rms_hi, L.rms);
-        EXPECT_GE(L.peak, std::sqrt(2.0) * L.rms * 0.99); // a peak below sqrt(2) RMS is impossible for a zero-mean oscillation... nearly
+        EXPECT_GE(L.peak, L.rms); // |x - mean| <= peak everywhere bounds the RMS about the mean
         // The spectrum carries the unstable modes' frequencies (each within 5 %, the nonlinear shift).
         std::vector<double> fl;
         for (PetscInt m : pl.stability.unstable) fl.push_back(pl.stability.modes[m].Frequency());
