@@ -142,7 +142,14 @@ def classify(f, amp, power_in_lines, total_power, df_res):
         share = power_in_lines / total_power if total_power else 0.0
         return "broadband", [], [], f"lines carry {share:.0%} of the power (< 50 %)"
     order = np.argsort(-amp)
-    bases = [f[order[0]]]
+    # The base: the strongest line, or the lowest line of which it is a harmonic (a wave whose second
+    # harmonic is the stronger is periodic in the lower one, not a second base at half the first).
+    f1, top = f[order[0]], f[order[0]]
+    for i in order:
+        k = round(top / f[i])
+        if f[i] < f1 and k >= 2 and abs(top - k * f[i]) <= max(3 * df_res, 1e-9 * top):
+            f1 = f[i]
+    bases = [f1]
     names = {}
 
     def name_of(g, bases):
@@ -195,7 +202,9 @@ def analyse(x, t, batches=20, rtol=0.05):
     f, amp = fit_lines(xs, ts, [freq[i] for i in peaks]) if peaks else (np.array([]), np.array([]))
     total = float(np.sum(psd) * df_res)
     in_lines = float(np.sum(amp ** 2) / 2)
-    verdict, bases, names, evidence = classify(f, amp, in_lines, total, df_res)
+    # Names to within 3 resolutions of the whole record, not of the 4.5x coarser Welch segments
+    # (on the small pad at V = 10 m/s those called 12 958 Hz the third harmonic of 4 203 Hz).
+    verdict, bases, names, evidence = classify(f, amp, in_lines, total, 1.0 / (len(xs) * dt))
     return dict(cut=cut, t_cut=float(t[cut]), levels=lv, converged=lv["rel_halfwidth"] <= rtol, freq=freq, psd=psd,
                 lines=f, amplitudes=amp, names=names, bases=bases, verdict=verdict, evidence=evidence)
 

@@ -118,7 +118,7 @@ PetscErrorCode Checkpoint(MPI_Comm comm, io::H5Writer &out, const char *done)
 }
 
 struct Stages {
-  PetscLogStage eq, stab, sweep, transient, energy, shooting;
+  PetscLogStage eq, stab, sweep, transient, energy, shooting, steady;
 };
 
 // The verdict of the stability analysis, in words; energy, shooting and continuation need it decided.
@@ -190,6 +190,54 @@ PetscErrorCode EstimateOtherModes(Pipeline &p)
   PetscFunctionReturn(0);
 }
 
+// The statistical steady state (Pipeline::Settle), viewed, written and checkpointed.
+PetscErrorCode Settle(Pipeline &p, const std::vector<PetscReal> &U, const std::vector<PetscReal> &dU, const std::string &start, io::H5Writer &out,
+                      const Stages &st)
+{
+  const MPI_Comm comm = p.Comm();
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogStagePush(st.steady));
+  PetscErrorCode err = p.Settle(U, dU, start);
+  PetscCall(PetscLogStagePop());
+  PetscCall(err);
+  PetscCall(p.steady.View(p.settled, PETSC_VIEWER_STDOUT_(comm)));
+  PetscCall(p.steady.ViewFromOptions(p.settled));
+  PetscCall(p.steady.Write(p.settled, out));
+  PetscCall(Checkpoint(comm, out, p.settled.complete ? "the statistical steady state" : "the statistical steady state's chunks so far"));
+  PetscFunctionReturn(0);
+}
+
+// -analyses auto: the pre-periods, then shooting or the statistical steady state; the route in
+// /route (route, reason, return_distance, pre_periods).
+PetscErrorCode ShootOrSettle(Pipeline &p, io::H5Writer &out, const Stages &st)
+{
+  const MPI_Comm  comm = p.Comm();
+  Pipeline::Route route;
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogStagePush(st.shooting));
+  PetscErrorCode err = p.ShootOrSettle(route);
+  PetscCall(PetscLogStagePop());
+  if (route.newton_ran) PetscCall(p.shooting.Write(p.cycle, out)); // also the best iterate of a failed Newton
+  PetscCall(err);
+  PetscCall(out.WriteAttribute("/route", "route", route.shooting ? "shooting" : "steady_state"));
+  PetscCall(out.WriteAttribute("/route", "reason", route.why.c_str()));
+  PetscCall(out.WriteAttribute("/route", "return_distance", route.pre.distance));
+  PetscCall(out.WriteAttribute("/route", "pre_periods", route.pre.periods));
+  PetscCall(out.WriteAttribute("/route", "pre_periods_limit", route.pre_periods));
+  PetscCall(out.WriteAttribute("/route", "pre_tol", p.shooting.pre_tol));
+  PetscCall(out.WriteAttribute("/route", "newton_failed", (PetscInt)route.newton_failed));
+  if (route.shooting) {
+    PetscCall(p.shooting.View(p.cycle, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(Checkpoint(comm, out, "shooting"));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(Checkpoint(comm, out, "the pre-periods"));
+  const bool from_mode = route.U.empty() || p.steady.from_mode;
+  if (from_mode) route.U.clear(), route.dU.clear();
+  PetscCall(Settle(p, route.U, route.dU, from_mode ? "the mode" : "the pre-periods' end state", out, st));
+  PetscFunctionReturn(0);
+}
+
 // The energy estimate, and from it shooting and the continuation when asked.
 PetscErrorCode RunEnergyAndCycle(Pipeline &p, const Request &req, io::H5Writer &out, const Stages &st)
 {
@@ -210,6 +258,9 @@ PetscErrorCode RunEnergyAndCycle(Pipeline &p, const Request &req, io::H5Writer &
              "continuation: no limit cycle to start from: the sliding equilibrium has no unstable mode in the band at %s; start the scene "
              "at a mu (or V) where it is unstable (the sweep, -analyses sweep, gives the critical mu)",
              at.c_str());
+  if (req.automatic && p.estimate.mode < 0)
+    PetscCall(PetscPrintf(comm, "route: none: no unstable mode in the band at %s, so neither a cycle nor a self-excited steady state\n", at.c_str()));
+  if (req.automatic && p.estimate.mode >= 0) PetscCall(ShootOrSettle(p, out, st));
   if (!req.shooting || p.estimate.mode < 0) PetscFunctionReturn(0);
   PetscCall(PetscLogStagePush(st.shooting));
   if (p.shooting.period > 0)
@@ -284,6 +335,7 @@ PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, 
     PetscCall(p.transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(Checkpoint(comm, out, tr.complete ? "the transient" : "the transient step in hand (the steps so far are written)"));
   }
+  if (req.steady) PetscCall(Settle(p, {}, {}, "the mode", out, st));
   PetscCall(out.SetStatus("complete"));
   PetscCall(out.Close());
   PetscCall(PetscPrintf(comm, "results written to %s\n", output));
@@ -310,11 +362,13 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscCall(PetscLogStageRegister("Transient", &st.transient));
   PetscCall(PetscLogStageRegister("Energy", &st.energy));
   PetscCall(PetscLogStageRegister("Shooting", &st.shooting));
+  PetscCall(PetscLogStageRegister("SteadyState", &st.steady));
 
   const std::string default_output = DefaultOutput();
   PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
   PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
-  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting, continuation", "RunApp", names, &nnames, &set));
+  PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting, continuation, steady (the statistical steady state of a "
+                                              "transient), auto (shooting where the flow returns after the pre-periods, else steady)", "RunApp", names, &nnames, &set));
   std::snprintf(output, sizeof(output), "%s", default_output.c_str());
   PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
                                sizeof(output), nullptr));

@@ -20,17 +20,23 @@ PetscErrorCode Request::Parse(MPI_Comm comm, char **names, PetscInt n, Request &
     else if (a == "energy") req.energy = req.energy_named = req.stability = true;
     else if (a == "shooting") req.shooting = req.energy = req.stability = true; // starts from the estimate
     else if (a == "continuation") req.continuation = req.shooting = req.energy = req.stability = true; // from the cycle
+    else if (a == "steady") req.steady = req.stability = true; // a transient from a mode
+    else if (a == "auto") req.automatic = req.energy = req.stability = true; // the estimate starts the pre-periods
     else {
-      SETERRQ(comm, kErrInput, "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation)",
+      SETERRQ(comm, kErrInput,
+              "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation, steady, auto)",
               a.c_str());
     }
   }
+  // auto is the choice between the two: asking for one of them as well leaves nothing to choose.
+  PetscCheck(!(req.automatic && (req.shooting || req.steady)), comm, kErrInput,
+             "-analyses: 'auto' chooses between shooting and the statistical steady state; give 'auto' alone, or 'shooting' or 'steady'");
   PetscFunctionReturn(0);
 }
 
 Pipeline::Pipeline(MPI_Comm comm)
   : model(comm), eqs(comm), stab(comm), sweep(comm), theta(comm), transient(comm), energy(comm), shooting(comm), continuation(comm),
-    comm_(comm)
+    steady(comm), comm_(comm)
 {
 }
 
@@ -110,6 +116,7 @@ PetscErrorCode Pipeline::SetFromOptions(const Request &req)
   PetscCall(shooting.SetFromOptions());
   PetscCall(continuation.SetFromOptions());
   continuation.SetBranchStarter(SliceStarter());
+  PetscCall(steady.SetFromOptions());
   PetscFunctionReturn(0);
 }
 
@@ -162,6 +169,97 @@ PetscErrorCode Pipeline::Shoot()
   PetscCall(VecCopy(estimate.dU0, dU0));
   PetscCall(VecScale(dU0, shooting.q_scale));
   PetscCall(shooting.Solve(model, eq, theta, U0, dU0, shooting.period > 0 ? shooting.period : estimate.T0, cycle));
+  PetscFunctionReturn(0);
+}
+
+namespace {
+
+// All N values of a distributed vector on every rank.
+PetscErrorCode ToAll(Vec v, std::vector<PetscReal> &out)
+{
+  VecScatter         sc;
+  Vec                z;
+  const PetscScalar *a;
+  PetscInt           n;
+  PetscFunctionBeginUser;
+  PetscCall(VecScatterCreateToAll(v, &sc, &z));
+  PetscCall(VecScatterBegin(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, v, z, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetSize(z, &n));
+  PetscCall(VecGetArrayRead(z, &a));
+  out.resize(n);
+  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(z, &a));
+  PetscCall(VecDestroy(&z));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode Pipeline::ShootOrSettle(Route &route)
+{
+  char b[512];
+  PetscFunctionBeginUser;
+  route = Route{};
+  PetscCheck(estimate.mode >= 0, comm_, PETSC_ERR_ARG_WRONGSTATE, "auto: no unstable mode in the band, nothing to choose");
+  if (!estimate.found) {
+    // No start for the pre-periods: the transient from the mode decides nothing about a cycle, but
+    // its statistics are an answer where the estimate has none.
+    std::snprintf(b, sizeof b,
+                  "statistical steady state: the energy estimate found no amplitude where the powers balance (up to %g q_sep), so no start "
+                  "for the pre-periods; the transient starts from the mode",
+                  (double)estimate.q_max_factor);
+    route.why = b;
+    PetscCall(PetscPrintf(comm_, "route: %s\n", route.why.c_str()));
+    PetscFunctionReturn(0);
+  }
+  const PetscInt given = shooting.pre_periods;
+  route.pre_periods    = given > 0 ? given : Route::kAutoPrePeriods;
+  shooting.pre_periods = route.pre_periods;
+  shooting.after_pre_periods = [&](const Shooting::PrePeriodsOutcome &o, Vec U, Vec dU, bool *newton) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    route.pre = o;
+    PetscCall(ToAll(U, route.U));
+    PetscCall(ToAll(dU, route.dU));
+    route.shooting = route.newton_ran = *newton = o.returned;
+    const std::string limit = "-shoot_pre_periods " + std::to_string(route.pre_periods) + (given > 0 ? "" : " (auto's default)");
+    if (o.returned)
+      std::snprintf(b, sizeof b, "shooting: the flow returns, return distance %.2e < -shoot_pre_tol %g after %" PetscInt_FMT " pre-period(s) of %s, period %.7g s",
+                    (double)o.distance, (double)shooting.pre_tol, o.periods, limit.c_str(), (double)o.period);
+    else
+      std::snprintf(b, sizeof b,
+                    "statistical steady state: the flow does not return, return distance %.2e %s -shoot_pre_tol %g after %" PetscInt_FMT
+                    " pre-period(s) (%s)%s",
+                    (double)o.distance, o.distance < shooting.pre_tol ? "<" : ">=", (double)shooting.pre_tol, o.periods, limit.c_str(),
+                    o.measured_period > 0 ? "" : ", no period measured at the Poincare section");
+    route.why = b;
+    PetscCall(PetscPrintf(comm_, "route: %s\n", route.why.c_str()));
+    PetscFunctionReturn(0);
+  };
+  struct Unhook {
+    Pipeline &p;
+    PetscInt  n;
+    ~Unhook() { p.shooting.after_pre_periods = nullptr, p.shooting.pre_periods = n; }
+  } unhook{*this, given};
+  // A Newton that does not converge from a returned flow is a route, not an error.
+  PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+  PetscErrorCode err = Shoot();
+  PetscCall(PetscPopErrorHandler());
+  if (err && err != PETSC_ERR_NOT_CONVERGED) SETERRQ(comm_, err, "auto: shooting failed: %s", cycle.reason.empty() ? "(no reason recorded)" : cycle.reason.c_str());
+  if (route.shooting && (err || !cycle.converged)) {
+    route.shooting = false, route.newton_failed = true;
+    std::snprintf(b, sizeof b, "statistical steady state after all: shooting did not converge from the returned flow (%s)", cycle.reason.c_str());
+    route.why += std::string("; ") + b;
+    PetscCall(PetscPrintf(comm_, "route: %s\n", b));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Pipeline::Settle(const std::vector<PetscReal> &U, const std::vector<PetscReal> &dU, const std::string &start)
+{
+  PetscFunctionBeginUser;
+  PetscCall(steady.Run(model, eq, stability, theta, transient, U, dU, start, settled));
   PetscFunctionReturn(0);
 }
 

@@ -99,7 +99,7 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
 PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
 {
   static const char *const ours[]    = {"model_", "contact_", "reduce_", "stab_", "eq_", "sweep_",
-                                        "theta_", "transient_", "energy_", "shoot_", "cont_"};
+                                        "theta_", "transient_", "energy_", "shoot_", "cont_", "steady_"};
   static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_",
                                         "_ds_", "_rg_", "_fn_", "_mat_", "_svd_", "_view", "_monitor", "converged_reason"};
   std::string unknown;

@@ -254,7 +254,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
                         "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
                         ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
                         k, pre_periods, (double)pre_tol, (double)e, (double)T));
-  pre_done_ = k, pre_T_ = T;
+  pre_done_ = k, pre_T_ = T, pre_e_ = e, pre_returned_ = e < pre_tol && Tm > 0;
   PetscCall(PetscLogEventEnd(shoot_ev::pre, 0, 0, 0, 0));
   PetscCall(Pack(U, dU, T, x));
   PetscFunctionReturn(0);

@@ -347,8 +347,26 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpAt(T0));
   PetscCall(SetUpNewton());
   PetscCall(CreateState(x.out()));
+  pre_e_ = 0, pre_returned_ = false;
   if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, x));
   else PetscCall(Pack(U0, dU0, T0, x));
+  if (after_pre_periods) {
+    VecH      U, dU;
+    PetscReal T;
+    bool      newton = true;
+    PetscCall(VecDuplicate(U0, U.out()));
+    PetscCall(VecDuplicate(dU0, dU.out()));
+    PetscCall(Unpack(x, U, dU, &T));
+    PetscCall(after_pre_periods({pre_done_, pre_e_, T, pre_measured_, pre_returned_}, U, dU, &newton));
+    if (!newton) {
+      res.reason              = "Newton not started (after_pre_periods)";
+      res.period              = T;
+      res.pre_periods         = pre_done_;
+      res.pre_period          = pre_T_;
+      res.pre_measured_period = pre_measured_;
+      PetscFunctionReturn(0);
+    }
+  }
   PetscCall(Newton(x, res));
   PetscCall(GatherZ0(x, res));
   PetscCall(Orbit(aU_, adU_, res.period, res));

@@ -33,6 +33,12 @@ class SteadyState(unittest.TestCase):
         names = {n for n in r["names"]}
         self.assertTrue({"1 f1", "3 f1", "5 f1"} <= names, names)
 
+    def test_a_stronger_second_harmonic_keeps_the_fundamental_as_base(self):
+        x = 0.4 * np.sin(2 * np.pi * 777.7 * T) + np.sin(4 * np.pi * 777.7 * T + 0.5)
+        r = ss.analyse(x, T)
+        self.assertEqual(r["verdict"], "periodic", r["evidence"])
+        self.assertLess(abs(r["bases"][0] / 777.7 - 1), 1e-7)
+
     def test_white_noise_is_broadband(self):
         x = np.random.default_rng(1).standard_normal(len(T))
         self.assertEqual(ss.analyse(x, T)["verdict"], "broadband")

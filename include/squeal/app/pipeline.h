@@ -16,6 +16,7 @@
 #include "squeal/stability/equilibrium.h"
 #include "squeal/stability/stability.h"
 #include "squeal/stability/sweep.h"
+#include "squeal/steady/steady_state.h"
 
 #include <string>
 
@@ -27,8 +28,12 @@ struct Request {
   bool stability = false, sweep = false, transient = false, energy = false, shooting = false;
   bool continuation = false;
   bool energy_named = false; // the energy curve is asked for, not only shooting's start
+  // steady: the statistical steady state of a transient from the mode; automatic ("auto"): after
+  // the energy estimate and the pre-periods, shooting where the flow returns, the statistical
+  // steady state where it does not (Pipeline::ShootOrSettle).
+  bool steady = false, automatic = false;
 
-  // From the names of -analyses (stability, sweep, transient, energy, shooting, continuation).
+  // From the names of -analyses (stability, sweep, transient, energy, shooting, continuation, steady, auto).
   static PetscErrorCode Parse(MPI_Comm comm, char **names, PetscInt n, Request &req);
 };
 
@@ -59,6 +64,22 @@ public:
   // Shooting from the estimate's orbit scaled by -shoot_q_scale (or -shoot_period's start); fails
   // when the estimate found no balance. The best iterate is in `cycle` also when it fails.
   PetscErrorCode Shoot();
+  // The choice of -analyses auto. The pre-periods (-shoot_pre_periods, kAutoPrePeriods when 0) run
+  // from the estimate as shooting's; when their return criterion holds (return distance below
+  // -shoot_pre_tol with a measured period) Newton goes on from there as in Shoot, else the route is
+  // the statistical steady state from their end state (Settle). A returned flow whose Newton does
+  // not converge goes there too. One line says which and why.
+  struct Route {
+    static constexpr PetscInt   kAutoPrePeriods = 20;
+    bool                        shooting = false, newton_ran = false, newton_failed = false;
+    Shooting::PrePeriodsOutcome pre;
+    PetscInt                    pre_periods = 0;  // the limit they ran with
+    std::vector<PetscReal>      U, dU;            // their end state, all N values on every rank (empty: none)
+    std::string                 why;              // the line, without "route: "
+  };
+  PetscErrorCode ShootOrSettle(Route &route);
+  // The statistical steady state from (U, dU) (empty: the transient's start from the mode).
+  PetscErrorCode Settle(const std::vector<PetscReal> &U, const std::vector<PetscReal> &dU, const std::string &start);
   PetscErrorCode Continue(ContinuationResult &res); // from the converged cycle
   PetscErrorCode RunTransient(TransientResult &res);
   PetscErrorCode Sweep(SweepResult &res); // collective; each rank solves its points on a Pipeline of its own
@@ -76,10 +97,12 @@ public:
   EnergyAnalysis     energy;
   Shooting           shooting;
   Continuation       continuation;
+  SteadyState        steady;
   SlidingEquilibrium eq;
   StabilityResult    stability;
   EnergyEstimate     estimate;
   ShootingResult     cycle;
+  SteadyStateResult  settled;
 
 private:
   MPI_Comm comm_;

@@ -97,6 +97,15 @@ public:
   PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
                        ShootingResult &res);
   PetscErrorCode View(const ShootingResult &res, PetscViewer viewer) const;
+  // After the -shoot_pre_periods, when set: their outcome and end state (Z, T); *newton = false
+  // ends Solve there (res.converged false, no error). The pipeline's choice between shooting and
+  // the statistical steady state (app/pipeline.h) reads it.
+  struct PrePeriodsOutcome {
+    PetscInt  periods  = 0;
+    PetscReal distance = 0, period = 0, measured_period = 0; // last return distance; T they ended with; 0: none measured
+    bool      returned = false; // the return criterion held: distance < -shoot_pre_tol with the measured period
+  };
+  std::function<PetscErrorCode(const PrePeriodsOutcome &, Vec U, Vec dU, bool *newton)> after_pre_periods;
   PetscErrorCode Write(const ShootingResult &res, io::H5Writer &out) const;
 
   // The pieces, public for tests: the flow over one period and the bordered residual/Jacobian.
@@ -238,6 +247,8 @@ private:
   PetscReal       pre_measured_ = 0;   // ... the period their motion returned with (0: none)
   bool            recentred_    = false; // ... and whether the bracket was moved onto it
   PetscReal       pre_T_    = 0; // ... and the period they ended with
+  PetscReal       pre_e_    = 0;     // ... their last return distance
+  bool            pre_returned_ = false; // ... and whether they stopped on the return criterion
   void           *ksp_default_ctx_ = nullptr; // KSPConvergedDefault's, wrapped by KrylovConverged
   PetscReal       rnorm0_          = 0;
   bool            confirm_only_    = false; // this Newton step only confirms |dT| / T < eps2

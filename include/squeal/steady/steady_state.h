@@ -1,0 +1,131 @@
+// The statistical steady state (docs/steady-state.md; issue 19 items 1 and 3): what a transient
+// without a periodic orbit settles to, as levels with a confidence interval and a line spectrum.
+// Options prefix "steady_".
+//
+// From a uniformly sampled signal x_i = x(t_0 + i dt) (the transient's signal DOF, and the total
+// normal reaction sum_c r_n,c):
+//   start-up  MSER (White 1997) on the local power p_j = mean over batch j of (x - xbar)^2, batches
+//             of one period of the strongest line: the cut d minimises var(p_d..)/(n - d - 1),
+//             d <= n/2;
+//   levels    RMS about the mean and peak |x - xbar| of what remains; the 95 % interval of the mean
+//             square from B batch means b_k of (x - xbar)^2, mean(b) +- t_{0.975, B-1} s_b / sqrt(B)
+//             (Student t, the largest tabulated degree of freedom not above B - 1: conservative),
+//             its square roots bracketing the RMS; converged when (hi - lo) / (2 RMS) < rtol and
+//             the RMS's drift (the least-squares trend of the batch means over the record,
+//             relative) < rtol, for both signals;
+//   spectrum  Welch's PSD: Hann window (numpy's symmetric one), 50 % overlap, segments of
+//             L = max(16, 2n/9) records, one-sided;
+//   lines     the PSD's local maxima above 100x its median, each refined on the whole record's
+//             4x zero-padded Hann spectrum (parabola on the log), then every frequency by
+//             Gauss-Newton on the least-squares fit of sum_k a_k cos 2 pi f_k t + b_k sin 2 pi f_k t;
+//   verdict   periodic (every line a harmonic k f1 of the strongest), quasi-periodic (every line
+//             m f1 + n f2, |m|, |n| <= 4, with a second base f2), broadband (lines carry less than
+//             half the power, or some are unexplained).
+// The same steps as scripts/steady_state.py, which reads the records after the run; here the
+// transient runs on in chunks of -steady_chunk_periods until the levels converge or
+// -steady_max_periods is reached. FFTs of any length: radix 2, Bluestein's chirp-z otherwise.
+#pragma once
+
+#include "squeal/integration/transient.h"
+#include "squeal/io/h5.h"
+
+#include <complex>
+#include <string>
+#include <vector>
+
+namespace squeal {
+
+namespace steady {
+
+// X_k = sum_j x_j exp(-2 pi i j k / nfft), k = 0..nfft/2, x zero-padded to nfft >= x.size().
+std::vector<std::complex<double>> RealFFT(const std::vector<double> &x, size_t nfft);
+// Two-sided 95 % Student t quantile for dof degrees of freedom (>= 1).
+double StudentT975(long dof);
+// Records of the start-up to drop: MSER on the power of batches of `batch` records.
+size_t MserCut(const std::vector<double> &x, size_t batch);
+// Records per period of the strongest line of the whole record (at least 5).
+size_t DominantPeriodRecords(const std::vector<double> &x);
+
+struct Levels {
+  double mean = 0, rms = 0, peak = 0, rms_lo = 0, rms_hi = 0, rel_halfwidth = 0;
+  // The RMS's relative change over the record from the least-squares line through the batch means
+  // of the square: |slope| B / mean / 2. The interval assumes a stationary record; a slow trend
+  // (a start-up longer than MSER's half) narrows it without making it right.
+  double drift = 0;
+};
+Levels BatchLevels(const std::vector<double> &x, long batches);
+
+// One-sided Welch PSD (Hann, 50 % overlap); freq[k] = k / (L dt).
+void Welch(const std::vector<double> &x, double dt, int segments, std::vector<double> &freq, std::vector<double> &psd);
+// Local maxima of psd above floor_factor x its median (psd[1:]), strongest first, at most max_lines.
+std::vector<size_t> FindLines(const std::vector<double> &psd, double floor_factor, size_t max_lines, double *floor);
+// Least-squares sinusoids with frequencies refined from f0 by Gauss-Newton: f and amplitudes.
+void FitLines(const std::vector<double> &x, double dt, const std::vector<double> &f0, std::vector<double> &f, std::vector<double> &amp);
+
+struct Classification {
+  std::string              verdict, evidence;
+  std::vector<double>      bases;
+  std::vector<std::string> names; // per line, in the order of f
+};
+Classification Classify(const std::vector<double> &f, const std::vector<double> &amp, double power_in_lines, double total_power,
+                        double df_res);
+
+// Everything above for one signal sampled every dt.
+struct Analysis {
+  size_t              cut = 0;
+  Levels              levels;
+  std::vector<double> freq, psd, lines, amplitudes;
+  Classification      cls;
+};
+Analysis Analyse(const std::vector<double> &x, double dt, long batches);
+
+} // namespace steady
+
+struct SteadyStateResult {
+  // The analysed records (rank 0): t, the signal DOF, the total normal reaction (empty: no contact).
+  std::vector<PetscReal> t, x, rn;
+  PetscInt               dof = -1, chunks = 0;
+  PetscReal              T_ref = 0, periods = 0; // the starting mode's period, and the run's length in it
+  steady::Analysis       signal;
+  steady::Levels         normal; // over the same records as the signal's levels
+  bool                   converged = false, complete = false;
+  PetscReal              seconds = 0;
+  std::string            start; // where the run started (the mode, or the pre-periods' end state)
+};
+
+class SteadyState {
+public:
+  explicit SteadyState(MPI_Comm comm) : comm_(comm) {}
+  ~SteadyState();
+  SteadyState(const SteadyState &)            = delete;
+  SteadyState &operator=(const SteadyState &) = delete;
+  // -steady_rtol, -steady_batches, -steady_chunk_periods, -steady_max_periods, -steady_dof,
+  // -steady_monitor [viewer], -steady_view [viewer] (after the run).
+  PetscErrorCode SetFromOptions();
+  // The transient (its own options, -transient_*) in chunks from (u0, du0), all N values on every
+  // rank in the model's order (empty: the transient's own start, from the mode), until the
+  // levels converge or max_periods of the starting mode have run. `start` says where from.
+  PetscErrorCode Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab, ThetaIntegrator &ti,
+                     TransientAnalysis &transient, const std::vector<PetscReal> &u0, const std::vector<PetscReal> &du0,
+                     const std::string &start, SteadyStateResult &res);
+  // The statistics of res.t, res.x, res.rn (rank 0); broadcasts `converged`.
+  PetscErrorCode Analyse(SteadyStateResult &res) const;
+  PetscErrorCode View(const SteadyStateResult &res, PetscViewer viewer) const;
+  PetscErrorCode ViewFromOptions(const SteadyStateResult &res) const;
+  // /steady_state, with scripts/steady_state.py --write's names.
+  PetscErrorCode Write(const SteadyStateResult &res, io::H5Writer &out) const;
+
+  PetscReal rtol = 0.05, chunk_periods = 50, max_periods = 1000;
+  PetscInt  batches = 20, dof = -1;
+  // -steady_from_mode: after -analyses auto chose this route, start from the mode (as -analyses
+  // steady) instead of the pre-periods' end state (which the energy estimate may have put far above
+  // the motion: the small pad at V = 10 m/s, docs/steady-state.md).
+  PetscBool from_mode = PETSC_FALSE;
+
+private:
+  MPI_Comm    comm_;
+  PetscViewer monitor_ = nullptr;
+  PetscViewerFormat monitor_format_ = PETSC_VIEWER_DEFAULT;
+};
+
+} // namespace squeal

@@ -1,0 +1,235 @@
+// The statistical steady state (issue 19 items 1 and 3): the signal statistics on signals whose
+// answer is known exactly, and the pipeline's choice between shooting and the statistical route.
+#include "squeal/app/pipeline.h"
+#include "squeal/model/builders.h"
+#include "squeal/steady/steady_state.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <random>
+
+using namespace squeal;
+
+namespace {
+
+constexpr double kStep = 1e-5;
+constexpr size_t kLen  = 40000; // 0.4 s: 400 periods of 1 kHz
+
+std::vector<double> Signal(double (*f)(double))
+{
+  std::vector<double> x(kLen);
+  for (size_t i = 0; i < kLen; ++i) x[i] = f(i * kStep);
+  return x;
+}
+
+// The line nearest to g.
+double Nearest(const steady::Analysis &a, double g)
+{
+  double best = INFINITY;
+  for (double f : a.lines)
+    if (std::abs(f - g) < std::abs(best - g)) best = f;
+  return best;
+}
+
+} // namespace
+
+TEST(SteadyState, FFTOfAnyLengthIsTheDirectDFT)
+{
+  // Radix 2 (64) and Bluestein (12, 45, 1000), zero-padded (45 -> 90), against the sum itself.
+  std::mt19937 gen(3);
+  std::normal_distribution<double> nd;
+  for (auto [n, nfft] : std::vector<std::pair<size_t, size_t>>{{64, 64}, {12, 12}, {45, 45}, {45, 90}, {1000, 1000}}) {
+    std::vector<double> x(n);
+    for (double &v : x) v = nd(gen);
+    const auto X = steady::RealFFT(x, nfft);
+    ASSERT_EQ(X.size(), nfft / 2 + 1);
+    for (size_t k = 0; k < X.size(); ++k) {
+      std::complex<long double> s = 0;
+      for (size_t j = 0; j < n; ++j) s += (long double)x[j] * std::polar(1.0L, -2 * acosl(-1) * (long double)((j * k) % nfft) / nfft);
+      EXPECT_NEAR(std::abs(X[k] - std::complex<double>((double)s.real(), (double)s.imag())), 0.0, 1e-11 * std::sqrt((double)n)) << n << " " << k;
+    }
+  }
+}
+
+TEST(SteadyState, TwoIncommensurateLinesAreQuasiPeriodicTo1e6)
+{
+  const double f1 = 1000, f2 = 1000 * std::sqrt(2.0);
+  const auto   x  = Signal([](double t) { return std::sin(2 * M_PI * 1000 * t + 0.3) + 0.5 * std::sin(2 * M_PI * 1000 * std::sqrt(2.0) * t + 1.1); });
+  const steady::Analysis a = steady::Analyse(x, kStep, 20);
+  EXPECT_EQ(a.cls.verdict, "quasi-periodic") << a.cls.evidence;
+  EXPECT_LT(std::abs(Nearest(a, f1) / f1 - 1), 1e-6);
+  EXPECT_LT(std::abs(Nearest(a, f2) / f2 - 1), 1e-6);
+  ASSERT_EQ(a.cls.bases.size(), 2u);
+  EXPECT_LT(std::abs(a.cls.bases[0] / f1 - 1), 1e-6);
+  EXPECT_LT(std::abs(a.cls.bases[1] / f2 - 1), 1e-6);
+  // Amplitudes 1 and 0.5 from the least-squares fit.
+  for (size_t i = 0; i < a.lines.size(); ++i) {
+    if (std::abs(a.lines[i] / f1 - 1) < 1e-6) {
+      EXPECT_NEAR(a.amplitudes[i], 1.0, 1e-6);
+    }
+    if (std::abs(a.lines[i] / f2 - 1) < 1e-6) {
+      EXPECT_NEAR(a.amplitudes[i], 0.5, 1e-6);
+    }
+  }
+}
+
+TEST(SteadyState, AWaveWithHarmonicsIsPeriodic)
+{
+  const double f = 1234.5;
+  const auto   x = Signal([](double t) {
+    return std::sin(2 * M_PI * 1234.5 * t) + 0.3 * std::sin(6 * M_PI * 1234.5 * t + 0.2) + 0.1 * std::sin(10 * M_PI * 1234.5 * t);
+  });
+  const steady::Analysis a = steady::Analyse(x, kStep, 20);
+  EXPECT_EQ(a.cls.verdict, "periodic") << a.cls.evidence;
+  ASSERT_EQ(a.cls.bases.size(), 1u);
+  EXPECT_LT(std::abs(a.cls.bases[0] / f - 1), 1e-7);
+  for (const char *h : {"1 f1", "3 f1", "5 f1"}) EXPECT_NE(std::find(a.cls.names.begin(), a.cls.names.end(), h), a.cls.names.end()) << h;
+  // RMS of the three sines: sqrt((1 + 0.09 + 0.01) / 2), over a whole number of periods up to 1/(n f).
+  EXPECT_NEAR(a.levels.rms, std::sqrt(1.1 / 2), 2e-3);
+}
+
+TEST(SteadyState, AWaveWhoseSecondHarmonicIsStrongerIsPeriodicInItsFundamental)
+{
+  const auto x = Signal([](double t) { return 0.4 * std::sin(2 * M_PI * 777.7 * t) + std::sin(4 * M_PI * 777.7 * t + 0.5); });
+  const steady::Analysis a = steady::Analyse(x, kStep, 20);
+  EXPECT_EQ(a.cls.verdict, "periodic") << a.cls.evidence;
+  ASSERT_EQ(a.cls.bases.size(), 1u);
+  EXPECT_LT(std::abs(a.cls.bases[0] / 777.7 - 1), 1e-7);
+}
+
+TEST(SteadyState, WhiteNoiseIsBroadband)
+{
+  std::mt19937                     gen(1);
+  std::normal_distribution<double> nd;
+  std::vector<double>              x(kLen);
+  for (double &v : x) v = nd(gen);
+  EXPECT_EQ(steady::Analyse(x, kStep, 20).cls.verdict, "broadband");
+}
+
+TEST(SteadyState, BatchMeansIntervalContainsTheExactRms)
+{
+  // A sine of amplitude A plus stationary AR(1) noise e_k = phi e_{k-1} + s w_k:
+  // RMS^2 = A^2 / 2 + s^2 / (1 - phi^2) exactly. A 95 % interval: 10 of 10 expected, 8 allowed.
+  const double A = 1, phi = 0.9, s = 0.3, exact = std::sqrt(A * A / 2 + s * s / (1 - phi * phi));
+  int          inside = 0;
+  for (int seed = 0; seed < 10; ++seed) {
+    std::mt19937                     gen(seed);
+    std::normal_distribution<double> nd;
+    std::vector<double>              x(kLen);
+    double                           e = nd(gen) * s / std::sqrt(1 - phi * phi);
+    for (size_t k = 0; k < kLen; ++k) {
+      if (k) e = phi * e + s * nd(gen);
+      x[k] = A * std::sin(2 * M_PI * 1000 * k * kStep) + e;
+    }
+    const steady::Levels L = steady::BatchLevels(x, 20);
+    inside += L.rms_lo <= exact && exact <= L.rms_hi;
+    EXPECT_LT(L.rel_halfwidth, 0.05);
+  }
+  EXPECT_GE(inside, 8);
+}
+
+TEST(SteadyState, TheStartUpIsDropped)
+{
+  // A 700 Hz start-up decaying with tau = 20 ms (25x the steady power at t = 0) on a 1 kHz sine.
+  const auto   x   = Signal([](double t) { return 5 * std::exp(-t / 0.02) * std::sin(2 * M_PI * 700 * t) + std::sin(2 * M_PI * 1000 * t); });
+  const size_t cut = steady::MserCut(x, 5);
+  EXPECT_GT(cut * kStep, 2 * 0.02);
+  EXPECT_LT(cut * kStep, 0.2);
+}
+
+TEST(SteadyState, StudentQuantileIsConservativeBetweenTableEntries)
+{
+  EXPECT_DOUBLE_EQ(steady::StudentT975(19), 2.093);
+  EXPECT_DOUBLE_EQ(steady::StudentT975(1), 12.706);
+  EXPECT_GE(steady::StudentT975(45), 2.014); // the exact t_{0.975, 45}
+}
+
+// -analyses auto on the 3-DOF case 1 (docs/method.md section 8): the flow returns after a few
+// pre-periods, and shooting reaches the cycle that -analyses shooting reaches from the estimate.
+TEST(SteadyState, ThePipelineShootsOnThreeDofCase1)
+{
+  ThreeDofParams p;
+  p.mu = 0.5, p.V = 3.0;
+  Pipeline a(PETSC_COMM_WORLD), b(PETSC_COMM_WORLD);
+  for (Pipeline *q : {&a, &b}) {
+    ASSERT_EQ(BuildThreeDof(PETSC_COMM_WORLD, p, q->model), 0);
+    ASSERT_EQ(q->SetFromOptions(), 0);
+    ASSERT_EQ(q->SolveEquilibrium(), 0);
+    ASSERT_EQ(q->SolveStability(), 0);
+    ASSERT_EQ(q->EstimateEnergy(), 0);
+  }
+  Pipeline::Route route;
+  ASSERT_EQ(a.ShootOrSettle(route), 0);
+  EXPECT_TRUE(route.shooting) << route.why;
+  EXPECT_FALSE(route.newton_failed);
+  EXPECT_LT(route.pre.distance, a.shooting.pre_tol);
+  EXPECT_LT(route.pre.periods, route.pre_periods);
+  EXPECT_EQ(a.shooting.pre_periods, 0); // put back
+  ASSERT_TRUE(a.cycle.converged);
+  ASSERT_EQ(b.Shoot(), 0);
+  ASSERT_TRUE(b.cycle.converged);
+  // The same cycle: the period to the Newton tolerance, the peak-to-peak values to 1e-4.
+  EXPECT_NEAR(a.cycle.period / b.cycle.period, 1.0, 1e-6);
+  EXPECT_NEAR(a.cycle.period, 0.0108202, 1e-7); // README's worked example
+  for (size_t k = 0; k < b.cycle.peak_to_peak.size(); ++k) EXPECT_NEAR(a.cycle.peak_to_peak[k] / b.cycle.peak_to_peak[k], 1.0, 1e-3) << k;
+}
+
+// -analyses auto on the small pad at V = 10 m/s (examples/pad/pad_small_shooting.yaml): two modes
+// unstable (8756 and 12977 Hz), separation at impacts; the pre-periods' flow does not return, and
+// the statistical route gives levels and lines. The references: the linear unstable frequencies
+// (the motion's strongest lines within 5 % of the mode or its combination) and the interval's
+// own consistency.
+TEST(SteadyState, ThePipelineSettlesStatisticallyOnAnIrregularPad)
+{
+  PetscOptions opts;
+  ASSERT_EQ(PetscOptionsCreate(&opts), 0);
+  ASSERT_EQ(PetscOptionsPush(opts), 0);
+  PetscErrorCode ierr = PetscOptionsInsertFileYAML(PETSC_COMM_WORLD, nullptr, SQUEAL_SOURCE_DIR "/examples/pad/pad_small_shooting.yaml", PETSC_TRUE);
+  if (!ierr) ierr = PetscOptionsInsertString(nullptr, "-contact_v 10 -steady_max_periods 150 -steady_chunk_periods 50");
+  {
+    Pipeline pl(PETSC_COMM_WORLD);
+    if (!ierr) ierr = pl.BuildModel();
+    if (!ierr) ierr = pl.Reduce();
+    if (!ierr) ierr = pl.SetFromOptions();
+    if (!ierr) ierr = pl.SolveEquilibrium();
+    if (!ierr) ierr = pl.SolveStability();
+    if (!ierr) ierr = pl.EstimateEnergy();
+    Pipeline::Route route;
+    if (!ierr) ierr = pl.ShootOrSettle(route);
+    if (!ierr) {
+      EXPECT_FALSE(route.shooting) << route.why;
+      EXPECT_FALSE(route.newton_ran);
+      EXPECT_GE(route.pre.distance, pl.shooting.pre_tol);
+      EXPECT_EQ(route.pre.periods, route.pre_periods);
+      EXPECT_EQ(route.U.size(), (size_t)pl.model.Size());
+      ierr = pl.Settle(route.U, route.dU, "the pre-periods' end state");
+    }
+    if (!ierr) {
+      const SteadyStateResult &r = pl.settled;
+      EXPECT_EQ(r.chunks, 3);
+      EXPECT_NEAR(r.periods, 150, 1);
+      PetscMPIInt rank;
+      MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+      if (rank == 0) {
+        EXPECT_NE(r.signal.cls.verdict, "periodic") << r.signal.cls.evidence;
+        const steady::Levels &L = r.signal.levels;
+        EXPECT_GT(L.rms, 0);
+        EXPECT_LE(L.rms_lo, L.rms);
+        EXPECT_GE(L.rms_hi, L.rms);
+        EXPECT_GE(L.peak, L.rms); // |x - mean| <= peak everywhere bounds the RMS about the mean
+        // The spectrum carries the unstable modes' frequencies (each within 5 %, the nonlinear shift).
+        std::vector<double> fl;
+        for (PetscInt m : pl.stability.unstable) fl.push_back(pl.stability.modes[m].Frequency());
+        ASSERT_EQ(fl.size(), 2u);
+        for (double g : fl) EXPECT_LT(std::abs(Nearest(r.signal, g) / g - 1), 0.05) << g;
+        EXPECT_GT(r.normal.mean, 0);
+      }
+    }
+  }
+  EXPECT_EQ(PetscOptionsPop(), 0);
+  EXPECT_EQ(PetscOptionsDestroy(&opts), 0);
+  ASSERT_EQ(ierr, 0);
+}
