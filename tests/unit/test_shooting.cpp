@@ -669,11 +669,11 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
 // bit for bit, as with both given); FE-sized models get 200 steps and up to 200 pre-periods to 0.02.
 TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
 {
-  EXPECT_EQ(Shooting::DefaultSteps(3, 200), 1000);
-  EXPECT_EQ(Shooting::DefaultSteps(99, 200), 1000);  // 2N + 1 = 199: dense bordered Jacobian
-  EXPECT_EQ(Shooting::DefaultSteps(100, 200), 200);  // 201: GMRES on tangent products
-  EXPECT_EQ(Shooting::DefaultSteps(562, 200), 200);  // the reduced 2625-DOF pad
-  EXPECT_EQ(Shooting::DefaultSteps(562, 2000), 1000); // ... with -shoot_jacobian_dense_max 2000
+  EXPECT_EQ(Shooting::DefaultSteps(3), 1000);
+  EXPECT_EQ(Shooting::DefaultSteps(99), 1000); // 2N + 1 = 199: dense bordered Jacobian
+  EXPECT_EQ(Shooting::DefaultSteps(100), 200); // 201: GMRES on tangent products
+  EXPECT_EQ(Shooting::DefaultSteps(180), 200); // the reduced small pad, as its transient
+  EXPECT_EQ(Shooting::DefaultSteps(562), 200); // the reduced 2625-DOF pad
   // The trapezoidal rule turns x'' = -w^2 x by 2 atan(w h / 2) a step: the relative period error at
   // N_s steps is (2 pi / N_s) / (2 atan(pi / N_s)) - 1, about (2 pi / N_s)^2 / 12 (shooting.cpp).
   auto period_error = [](double ns) { return (2 * PETSC_PI / ns) / (2 * std::atan(PETSC_PI / ns)) - 1; };

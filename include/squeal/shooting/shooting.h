@@ -94,7 +94,7 @@ public:
   PetscErrorCode SetFromOptions();
   // The defaults that follow from the model (N DOFs), for the options left at PETSC_DECIDE:
   // steps per period, and the pre-periods with their tolerance (shooting.cpp says why).
-  static PetscInt DefaultSteps(PetscInt N, PetscInt jacobian_dense_max);
+  static PetscInt DefaultSteps(PetscInt N);
   static void     DefaultPrePeriods(PetscInt N, PetscInt *pre_periods, PetscReal *pre_tol);
   // Solves from (U0, dU0, T0). Not converging is reported in res (reason, best iterate), and
   // returned as an error after res is complete, so that the caller can write it first.
