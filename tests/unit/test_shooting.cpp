@@ -701,7 +701,6 @@ TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
     EXPECT_EQ(pr.sh.steps, 1000);
     EXPECT_EQ(pr.sh.pre_periods, 0);
     EXPECT_EQ(pr.sh.pre_tol, 0.05);
-    EXPECT_TRUE(pr.ti.Dense());
   }
   Problem pr(p);
   pr.sh.floquet     = PETSC_FALSE;
