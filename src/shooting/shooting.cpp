@@ -457,10 +457,18 @@ std::string Shooting::FailureHint(const ShootingResult &res) const
   // Without the dense back end the products are finite differences of the flow, whose noise and
   // status changes break GMRES down on FE models (the 562-DOF pad: DIVERGED_BREAKDOWN).
   if (exact_jacobian && ti_ && !ti_->Dense()) {
-    std::snprintf(b, sizeof b,
-                  "; the Jacobian products were finite differences of the flow (N = %" PetscInt_FMT " DOFs on the sparse theta back "
-                  "end): -theta_dense_max %" PetscInt_FMT " puts the model on the dense one, whose exact step tangents GMRES needs",
-                  N_, N_);
+    // Beyond a few thousand DOFs the dense matrices do not fit: reduce first.
+    if (N_ <= 4000)
+      std::snprintf(b, sizeof b,
+                    "; the Jacobian products were finite differences of the flow (N = %" PetscInt_FMT " DOFs on the sparse theta "
+                    "back end): -theta_dense_max %" PetscInt_FMT " puts the model on the dense one, whose exact step tangents GMRES needs",
+                    N_, N_);
+    else
+      std::snprintf(b, sizeof b,
+                    "; the Jacobian products were finite differences of the flow (N = %" PetscInt_FMT " DOFs on the sparse theta "
+                    "back end): reduce the model (-reduce_type craig_bampton -reduce_fmax) so that it fits the dense back end, "
+                    "whose exact step tangents GMRES needs",
+                    N_);
     h += b;
   }
   if (collapsed) h += "; keep Newton off the equilibrium with -shoot_deflate_power 2";
