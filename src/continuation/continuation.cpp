@@ -573,12 +573,15 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   model_ = &model, eqs_ = &eqs, stab_ = &stab, ti_ = &ti, shoot_ = &shoot;
   // The branch polls between its own steps and keeps its points; an interrupt raised inside a
   // flow would lose them.
+  // Its points start from the predictor on the branch, which the model's default pre-periods
+  // (FE-sized models) would pull towards an attracting cycle: none unless given.
   struct Restore {
     Shooting &s;
-    bool      was;
-    ~Restore() { s.interruptible = was; }
-  } restore{shoot, shoot.interruptible};
-  shoot.interruptible = false;
+    bool      was, pre;
+    ~Restore() { s.interruptible = was, s.auto_pre_periods = pre; }
+  } restore{shoot, shoot.interruptible, shoot.auto_pre_periods};
+  shoot.interruptible    = false;
+  shoot.auto_pre_periods = false;
   res                    = ContinuationResult{};
   res.param_name         = param;
   step_count_ = halvings_ = flows_ = 0;

@@ -12,6 +12,7 @@
   #include <petsc/private/vecimpl.h>
 #endif
 
+#include <algorithm>
 #include <cmath>
 
 namespace squeal {
@@ -145,6 +146,18 @@ PetscErrorCode ThetaIntegrator::SetRhoScale(PetscReal s)
   PetscFunctionReturn(0);
 }
 
+// Up to 200 DOFs the dense step is the faster (crossover between N = 90 and 300 on the sparse chain,
+// benchmarks/bench_step.cpp). A model whose K or M is dense (a Craig-Bampton reduction couples every
+// interface DOF: 87 % non-zeros on the 562-DOF pad) gains nothing from the sparse back end, whose
+// Cholesky factor is then full, and only the dense one gives shooting its exact step tangents:
+// without them GMRES on finite-difference products broke down on the 562-DOF pad (issue 19).
+// Dense up to 2000 DOFs there: ~10 N x N matrices on every rank, 320 MB at N = 2000 (the 1420-DOF
+// reduced 31119-DOF pad ran dense).
+bool ThetaIntegrator::DefaultDense(PetscInt n, PetscReal density)
+{
+  return n <= 200 || (density >= 0.25 && n <= 2000);
+}
+
 PetscErrorCode ThetaIntegrator::SetDenseMax(PetscInt n)
 {
   PetscFunctionBeginUser;
@@ -177,7 +190,9 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "ThetaIntegrator::SetFixedPoint", fp_max_it_, &fp_max_it_, nullptr));
   SquealOptionsReal("-rho_scale", "Factor on the augmented-Lagrangian parameters rho of rule (2.4)",
                     "ThetaIntegrator::SetRhoScale", &rho_scale_, Range::Positive(), checks);
-  PetscCall(PetscOptionsInt("-dense_max", "Largest N for the dense back end, replicated on every rank (larger: sparse, distributed)",
+  PetscCall(PetscOptionsInt("-dense_max",
+                            "Largest N for the dense back end, replicated on every rank (larger: sparse, distributed; default: 200, "
+                            "or 2000 when at least a quarter of the entries of K or M are non-zero, as in a Craig-Bampton reduction)",
                             "ThetaIntegrator::SetDenseMax", dense_max_, &dense_max_, nullptr));
   PetscCall(PetscOptionsInt("-delassus_max",
                             "Sparse back end: largest 3 n_c with the dense Delassus matrix and Y = A^-1 H stored (larger: sparse W, one more solve "
@@ -309,7 +324,16 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   nc_    = model.contacts.Size();
   // Small models run the dense step on every rank, on gathered states: cheaper than a
   // distributed factorisation of a few hundred unknowns, and the same numbers on any rank count.
-  dense_ = n_ <= dense_max_;
+  if (dense_max_ >= 0) dense_ = n_ <= dense_max_;
+  else {
+    PetscReal density = 0;
+    for (Mat A : {(Mat)model.K, (Mat)model.M}) {
+      MatInfo info;
+      PetscCall(MatGetInfo(A, MAT_GLOBAL_SUM, &info));
+      density = std::max(density, (PetscReal)info.nz_used / ((PetscReal)n_ * n_));
+    }
+    dense_ = DefaultDense(n_, density);
+  }
   sparse_w_ = false; // decided in SetUpSparse, once A is factorised
   g0_.resize(nc_);
   for (PetscInt c = 0; c < nc_; ++c) g0_[c] = model.contacts.points[c].g0;

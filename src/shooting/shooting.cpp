@@ -39,10 +39,14 @@ Shooting::~Shooting()
 PetscErrorCode Shooting::SetFromOptions()
 {
   OptionChecks checks;
+  PetscBool    pre_tol_set = PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscCall(RegisterEvents());
   PetscOptionsBegin(comm_, "shoot_", "Shooting for the limit cycle", "Shooting");
-  PetscCall(PetscOptionsInt("-steps", "Theta-method steps per period N_s (h = T / N_s)", "Shooting", steps, &steps, nullptr));
+  PetscCall(PetscOptionsInt("-steps",
+                            "Theta-method steps per period N_s (h = T / N_s; default from the model: 1000 up to N = 99 DOFs, "
+                            "where the bordered Jacobian is dense at the default -shoot_jacobian_dense_max, else 200)",
+                            "Shooting", steps, &steps, nullptr));
   SquealOptionsReal("-eps1", "Stop when ||Z(Z0,T) - Z0|| / ||Z0|| < eps1 ...", "Shooting", &eps1, Range::Positive(), checks);
   SquealOptionsReal("-eps2", "... and |dT| / T < eps2 at the same iterate", "Shooting", &eps2, Range::Positive(), checks);
   SquealOptionsReal("-fd_step", "Relative finite-difference step of the flow derivatives", "Shooting", &fd_step, Range::Positive(),
@@ -76,17 +80,20 @@ PetscErrorCode Shooting::SetFromOptions()
                              "Shooting", linear_pc, &linear_pc, nullptr));
   PetscCall(PetscOptionsInt("-pre_periods",
                             "Integrate this many periods T0 from the start (the energy estimate) before Newton: brings the start near "
-                            "an attracting cycle whose shape differs from the unstable mode's",
+                            "an attracting cycle whose shape differs from the unstable mode's (default from the model: 0 up to "
+                            "N = 200 DOFs, at most 200 above)",
                             "Shooting", pre_periods, &pre_periods, nullptr));
   PetscCall(PetscOptionsBool("-ew",
                              "GMRES on tangent products: inexact Newton, with Eisenstat-Walker Krylov tolerances "
                              "(-shoot_snes_ksp_ew_* tune them) and a residual reduction of 1e-2 for the step that only confirms |dT|/T < eps2",
                              "Shooting", ew, &ew, nullptr));
-  SquealOptionsReal("-pre_tol",
-                    "Stop the -shoot_pre_periods early once the period-corrected return distance |Z(T) - Z0 + dt G| / |Z(T)| is "
-                    "below this and two successive returns of the motion to a Poincare section give periods within 1 % of "
-                    "each other; beyond 5 % of T that period becomes the start period and the bracket's centre (0: run them all)",
-                    "Shooting", &pre_tol, Range::NonNegative(), checks);
+  // Not SquealOptionsReal: PETSC_DECIDE (the model's default) is negative.
+  PetscCall(PetscOptionsReal("-pre_tol",
+                             "Stop the -shoot_pre_periods early once the period-corrected return distance |Z(T) - Z0 + dt G| / |Z(T)| is "
+                             "below this and two successive returns of the motion to a Poincare section give periods within 1 % of "
+                             "each other; beyond 5 % of T that period becomes the start period and the bracket's centre (0: run them "
+                             "all; default from the model: 0.05 up to N = 200 DOFs, 0.02 above)",
+                             "Shooting", pre_tol, &pre_tol, &pre_tol_set));
   SquealOptionsReal("-deflate_power",
                     "Deflate the sliding equilibrium Z_e (a trivial root: periodic with any T): Newton on m(Z0) H with "
                     "m = (d / d_0)^-p + shift, d = |(omega_0 (U0 - U_e), dU0)|, d_0 its value at the start, and a "
@@ -123,8 +130,11 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscCall(checks.Run(comm_));
   PetscCheck(floquet_phases == PETSC_DECIDE || floquet_phases >= 0, comm_, kErrInput,
              "option -shoot_floquet_phases = %" PetscInt_FMT ": expected >= 0", floquet_phases);
-  PetscCheck(steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
-  PetscCheck(pre_periods >= 0, comm_, kErrInput, "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
+  PetscCheck(steps == PETSC_DECIDE || steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
+  PetscCheck(pre_periods == PETSC_DECIDE || pre_periods >= 0, comm_, kErrInput,
+             "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
+  PetscCheck(!pre_tol_set || (pre_tol >= 0 && std::isfinite(pre_tol)), comm_, kErrInput,
+             "option -shoot_pre_tol = %g: expected >= 0", (double)pre_tol);
   PetscCheck(recycle >= 0, comm_, kErrInput, "option -shoot_recycle = %" PetscInt_FMT ": expected >= 0", recycle);
   PetscCheck(tangent_cache_mb >= 0, comm_, kErrInput, "option -shoot_tangent_cache_mb = %g: expected >= 0", (double)tangent_cache_mb);
 
@@ -167,6 +177,61 @@ PetscErrorCode Shooting::SetFromOptions()
   PetscFunctionReturn(0);
 }
 
+// Steps per period. The trapezoidal rule's relative period error at the cycle's own frequency is
+// (2 pi / N_s)^2 / 12: 3.3e-6 at 1000 steps, 8.2e-5 at 200, below what a reduced FE model answers
+// for (the 562-DOF pad's unstable eigenvalue is 9.0e-4 from the full model's) and below 1e-4, the
+// period agreement asked of a cycle against its transient (check_pad_cycle.py). The cost decides:
+// where the bordered Jacobian is dense (2N + 1 <= 200, the default -shoot_jacobian_dense_max) a Newton iteration is
+// one tangent integration and 1000 steps cost little (the 3-DOF cases: the defaults they were
+// checked with); above, every GMRES iteration and every Floquet column is a period of flow, and 200
+// steps make them 5 times cheaper (the reduced pads were run at 200: docs/records.md).
+PetscInt Shooting::DefaultSteps(PetscInt N)
+{
+  // The size, not -shoot_jacobian_dense_max itself: a 3-DOF case on the GMRES route (tests force
+  // it) keeps its 1000 steps.
+  return 2 * N + 1 <= 200 ? 1000 : 200;
+}
+
+// Pre-periods. Up to 200 DOFs Newton converges from the energy estimate itself (the 3-DOF cases,
+// the 180-DOF reduced small pad in 6 iterations): no pre-periods, and 0.05 if they are asked for.
+// Above, the cycle's shape is far from the unstable mode's (separation and stick at many contacts):
+// from the estimate Newton did not converge in 20 iterations on the 562-DOF pad, and at a return
+// distance of 0.2 it wandered on the 1420-DOF one, while 0.02 converged both (24 and 38 periods, then
+// 5 Newton iterations each). A period of flow costs what one GMRES iteration costs, so up to 200
+// of them, stopping at 0.02 once the period holds.
+void Shooting::DefaultPrePeriods(PetscInt N, PetscInt *pre_periods, PetscReal *pre_tol)
+{
+  const bool large = N > 200;
+  *pre_periods     = large ? 200 : 0;
+  *pre_tol         = large ? 0.02 : 0.05;
+}
+
+PetscErrorCode Shooting::ChooseDefaults()
+{
+  PetscFunctionBeginUser;
+  // The options left at PETSC_DECIDE, or at what this chose for the last model, follow this one.
+  PetscInt  pp;
+  PetscReal pt;
+  DefaultPrePeriods(N_, &pp, &pt);
+  const bool s = steps == PETSC_DECIDE || steps == auto_steps_, p = pre_periods == PETSC_DECIDE || pre_periods == auto_pre_,
+             t = pre_tol == PETSC_DECIDE || pre_tol == auto_pre_tol_;
+  if (s) steps = auto_steps_ = DefaultSteps(N_);
+  if (p) pre_periods = auto_pre_ = auto_pre_periods ? pp : 0;
+  if (t) pre_tol = auto_pre_tol_ = pt;
+  // Said once per model size where the choice differs from the small models' (3-DOF) defaults.
+  if (((s && steps != 1000) || (p && pre_periods != 0)) && N_ != auto_reported_) {
+    char pre[128] = "no pre-periods";
+    if (pre_periods > 0)
+      std::snprintf(pre, sizeof pre, "up to %" PetscInt_FMT " pre-periods to a return distance of %g", pre_periods, (double)pre_tol);
+    PetscCall(PetscPrintf(comm_,
+                          "shooting: for N = %" PetscInt_FMT " DOFs %" PetscInt_FMT " steps per period and %s (-shoot_steps, "
+                          "-shoot_pre_periods, -shoot_pre_tol: chosen from the model unless given)\n",
+                          N_, steps, pre));
+  }
+  auto_reported_ = N_;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti)
 {
   PetscFunctionBeginUser;
@@ -188,6 +253,7 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   for (VecH *v : {&lastU1_, &lastdU1_}) PetscCall(VecDuplicate(model.F, v->out()));
   PetscCallMPI(MPI_Comm_size(comm_, &size_));
   PetscCall(VecGetSize(model.F, &N_));
+  PetscCall(ChooseDefaults());
   if (size_ > 1) PetscCall(gather_.SetUp(model.F));
   last_valid_ = tr_valid_ = false;
   PetscCall(VecSet(xbase_, PETSC_INFINITY));
@@ -390,24 +456,65 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.bracket_recentred   = recentred_;
   // From the energy estimate, Newton can wander where the cycle's shape is far from the unstable
   // mode's (FE pads: separation and stick at many contacts); a few periods of flow first fix that.
+  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s",
+             res.reason.c_str(), (double)res.residual, (double)res.period, FailureHint(res).c_str());
+  PetscFunctionReturn(0);
+}
+
+// What to change when Newton did not converge, from what this solve did: the option that helps
+// in that situation, not only the Krylov solver's.
+std::string Shooting::FailureHint(const ShootingResult &res) const
+{
   const bool collapsed = res.reason.find("collapsed") != std::string::npos && !(deflate_power > 0);
   // The period pushed out of the bracket: a cycle far from the linear period (at mu = 5 on case 1
   // it settles at 2.14 T_lin), which more pre-periods at T0 do not reach.
-  const bool bracket = res.reason.find("the period left") != std::string::npos;
-  PetscCheck(res.converged, comm_, PETSC_ERR_NOT_CONVERGED, "shooting did not converge: %s (best ||H||/||Z0|| = %.3e at T = %.7f s)%s%s",
-             res.reason.c_str(), (double)res.residual, (double)res.period,
-             collapsed ? "; keep Newton off the equilibrium with -shoot_deflate_power 2" : "",
-             bracket ? (recentred_ ? "; it had been recentred on the period the pre-periods' motion returned with, which had not yet "
-                                     "settled: more -shoot_pre_periods (a smaller -shoot_pre_tol), or take the settled period of a "
-                                     "transient (-analyses transient) and start from it with -shoot_period"
-                        : "; the cycle's period may be far from the linear one (period-doubled or strongly nonlinear): run "
-                          "-shoot_pre_periods (e.g. 100), which measure the period of the motion and recentre the bracket on it, or "
-                          "take the settled period of a transient (-analyses transient) and start from it with -shoot_period")
-             : res.reason.find("Krylov") != std::string::npos ? ""
-             : pre_periods == 0 ? "; if the cycle attracts, start closer with a few periods of flow: -shoot_pre_periods 50"
-             : pre_done_ < pre_periods ? "; if the cycle attracts, start closer: a smaller -shoot_pre_tol"
-                                       : "; if the cycle attracts, start closer: more -shoot_pre_periods");
-  PetscFunctionReturn(0);
+  const bool  bracket = res.reason.find("the period left") != std::string::npos;
+  const bool  krylov  = res.reason.find("Krylov") != std::string::npos;
+  std::string h;
+  char        b[320];
+  // Without the dense back end the products are finite differences of the flow, whose noise and
+  // status changes break GMRES down on FE models (the 562-DOF pad: DIVERGED_BREAKDOWN).
+  if (exact_jacobian && ti_ && !ti_->Dense()) {
+    // Beyond a few thousand DOFs the dense matrices do not fit: reduce first.
+    if (N_ <= 4000)
+      std::snprintf(b, sizeof b,
+                    "; the Jacobian products were finite differences of the flow (N = %" PetscInt_FMT " DOFs on the sparse theta "
+                    "back end): -theta_dense_max %" PetscInt_FMT " puts the model on the dense one, whose exact step tangents GMRES needs",
+                    N_, N_);
+    else
+      std::snprintf(b, sizeof b,
+                    "; the Jacobian products were finite differences of the flow (N = %" PetscInt_FMT " DOFs on the sparse theta "
+                    "back end): reduce the model (-reduce_type craig_bampton -reduce_fmax) so that it fits the dense back end, "
+                    "whose exact step tangents GMRES needs",
+                    N_);
+    h += b;
+  }
+  if (collapsed) h += "; keep Newton off the equilibrium with -shoot_deflate_power 2";
+  if (bracket)
+    h += recentred_ ? "; it had been recentred on the period the pre-periods' motion returned with, which had not yet "
+                      "settled: more -shoot_pre_periods (a smaller -shoot_pre_tol), or take the settled period of a "
+                      "transient (-analyses transient) and start from it with -shoot_period"
+                    : "; the cycle's period may be far from the linear one (period-doubled or strongly nonlinear): run "
+                      "-shoot_pre_periods (e.g. 100), which measure the period of the motion and recentre the bracket on it, or "
+                      "take the settled period of a transient (-analyses transient) and start from it with -shoot_period";
+  else if (pre_periods == 0)
+    h += "; if the cycle attracts, start closer with periods of flow: -shoot_pre_periods 200 -shoot_pre_tol 0.02";
+  else if (pre_done_ < pre_periods)
+    h += "; if the cycle attracts, start closer: a smaller -shoot_pre_tol";
+  else {
+    std::snprintf(b, sizeof b,
+                  "; the %" PetscInt_FMT " pre-periods did not bring the flow back within -shoot_pre_tol %g: if the motion is "
+                  "periodic, more -shoot_pre_periods; if it never returns (irregular), there is no cycle to shoot for "
+                  "(-analyses transient shows the motion)",
+                  pre_done_, (double)pre_tol);
+    h += b;
+  }
+  // GMRES that ran out of iterations after a close start: its own options, and the step, whose
+  // status changes make the period map rough.
+  if (krylov && !(exact_jacobian && ti_ && !ti_->Dense()) && !bracket && pre_periods > 0)
+    h += "; the Krylov solve itself: -shoot_ksp_max_it, -shoot_ksp_gmres_restart, or more -shoot_steps (status changes within "
+         "a step make the products rough)";
+  return h;
 }
 
 PetscErrorCode Shooting::GatherZ0(Vec x, ShootingResult &res)

@@ -1,8 +1,10 @@
 // The FE pad generator and its Craig-Bampton reduction. References: closed forms (mass of the
 // meshed volume, rigid translations loading only the support springs) and the full model's own
 // eigenvalues (the reduction error must fall as the cut-off grows, and be small well above the band).
+#include "dense.h"
 #include "reduction_helpers.h"
 #include "squeal/core/gather.h"
+#include "squeal/integration/theta.h"
 #include "squeal/model/builders.h"
 #include "squeal/model/pad.h"
 #include "squeal/reduction/craig_bampton.h"
@@ -420,4 +422,54 @@ TEST(Reduction, CutOffBelowTheBandIsRefused)
   ASSERT_EQ(PetscPopErrorHandler(), 0);
   for (const char *o : {"-reduce_type", "-reduce_fmax", "-reduce_fband"}) ASSERT_EQ(PetscOptionsClearValue(nullptr, o), 0);
   EXPECT_NE(ierr, 0);
+}
+
+// Issue 19 item 4: without -theta_dense_max the back end follows the model. The full small pad
+// (468 DOFs, sparse) goes to the sparse back end; its Craig-Bampton reduction with 60 fixed-interface
+// modes (216 DOFs, above the old fixed bound 200) has dense matrices and goes to the dense back end,
+// which shooting's exact step tangents need; a given -theta_dense_max still decides. The density is
+// counted here on the dense copies of K and M, independently of the integrator's MatGetInfo.
+TEST(Reduction, ReducedModelTakesTheDenseThetaBackEndByDefault)
+{
+  PetscMPIInt size;
+  ASSERT_EQ(MPI_Comm_size(PETSC_COMM_WORLD, &size), 0);
+  if (size > 1) GTEST_SKIP() << "the back-end choice is the same on any rank count; counted on one";
+  Model full, red;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, SmallPad(), full), 0);
+  CraigBampton cb(PETSC_COMM_WORLD);
+  ASSERT_EQ(cb.SetFMax(0), 0);
+  ASSERT_EQ(cb.SetNModes(60), 0);
+  ASSERT_EQ(cb.Reduce(full, red), 0);
+  ASSERT_EQ(full.Size(), 468);
+  ASSERT_EQ(red.Size(), 216);
+  auto density = [](const Model &m) {
+    double d = 0;
+    for (Mat A : {(Mat)m.K, (Mat)m.M}) {
+      const Eigen::MatrixXd D = test::ToDense(A);
+      d = std::max(d, (double)(D.array() != 0.0).count() / (double)D.size());
+    }
+    return d;
+  };
+  const double dfull = density(full), dred = density(red);
+  EXPECT_LT(dfull, 0.125) << "full pad"; // 10.6 % on this coarse mesh (3 x 12 x 2 hexahedra), less on finer ones
+  EXPECT_GT(dred, 0.5) << "reduced pad";
+  EXPECT_FALSE(ThetaIntegrator::DefaultDense(full.Size(), dfull));
+  EXPECT_TRUE(ThetaIntegrator::DefaultDense(red.Size(), dred));
+  // The bounds: small models always dense (the 3-DOF cases), dense models up to 2000 DOFs.
+  EXPECT_TRUE(ThetaIntegrator::DefaultDense(3, 1.0));
+  EXPECT_TRUE(ThetaIntegrator::DefaultDense(200, 0.0));
+  EXPECT_FALSE(ThetaIntegrator::DefaultDense(201, 0.2));
+  EXPECT_TRUE(ThetaIntegrator::DefaultDense(2000, 0.25));
+  EXPECT_FALSE(ThetaIntegrator::DefaultDense(2001, 1.0));
+  // What the integrator does with them (the command line of unit_tests_np2_sparse aside).
+  for (const Model *m : {&full, &red}) {
+    ThetaIntegrator ti(PETSC_COMM_WORLD);
+    ASSERT_EQ(ti.SetFromOptions(), 0);
+    ASSERT_EQ(ti.SetDenseMax(PETSC_DECIDE), 0);
+    ASSERT_EQ(ti.SetUp(*m, 1e-6), 0);
+    EXPECT_EQ(ti.Dense(), m == &red) << m->Size() << " DOFs";
+    ASSERT_EQ(ti.SetDenseMax(200), 0);
+    ASSERT_EQ(ti.SetUp(*m, 1e-6), 0);
+    EXPECT_FALSE(ti.Dense()) << m->Size() << " DOFs, -theta_dense_max 200";
+  }
 }

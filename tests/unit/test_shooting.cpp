@@ -664,6 +664,54 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
   }
 }
 
+// Issue 19 item 4: steps per period and pre-periods follow from the model when not given. The
+// 3-DOF cases keep what they were checked with (1000 steps, no pre-periods: the same iterates,
+// bit for bit, as with both given); FE-sized models get 200 steps and up to 200 pre-periods to 0.02.
+TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
+{
+  EXPECT_EQ(Shooting::DefaultSteps(3), 1000);
+  EXPECT_EQ(Shooting::DefaultSteps(99), 1000); // 2N + 1 = 199: dense bordered Jacobian
+  EXPECT_EQ(Shooting::DefaultSteps(100), 200); // 201: GMRES on tangent products
+  EXPECT_EQ(Shooting::DefaultSteps(180), 200); // the reduced small pad, as its transient
+  EXPECT_EQ(Shooting::DefaultSteps(562), 200); // the reduced 2625-DOF pad
+  // The trapezoidal rule turns x'' = -w^2 x by 2 atan(w h / 2) a step: the relative period error at
+  // N_s steps is (2 pi / N_s) / (2 atan(pi / N_s)) - 1, about (2 pi / N_s)^2 / 12 (shooting.cpp).
+  auto period_error = [](double ns) { return (2 * PETSC_PI / ns) / (2 * std::atan(PETSC_PI / ns)) - 1; };
+  EXPECT_LT(period_error(200), 1e-4);
+  EXPECT_NEAR(period_error(200), 8.2e-5, 0.1e-5);
+  EXPECT_NEAR(period_error(1000), 3.3e-6, 0.1e-6);
+  PetscInt  pp;
+  PetscReal pt;
+  Shooting::DefaultPrePeriods(3, &pp, &pt);
+  EXPECT_EQ(pp, 0);
+  EXPECT_EQ(pt, 0.05);
+  Shooting::DefaultPrePeriods(180, &pp, &pt); // the reduced small pad: Newton converges from the estimate
+  EXPECT_EQ(pp, 0);
+  Shooting::DefaultPrePeriods(562, &pp, &pt);
+  EXPECT_EQ(pp, 200);
+  EXPECT_EQ(pt, 0.02);
+
+  ThreeDofParams p;
+  p.V = 0.75;
+  ShootingResult dflt, given;
+  {
+    Problem pr(p);
+    pr.sh.floquet = PETSC_FALSE;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, dflt), 0);
+    EXPECT_EQ(pr.sh.steps, 1000);
+    EXPECT_EQ(pr.sh.pre_periods, 0);
+    EXPECT_EQ(pr.sh.pre_tol, 0.05);
+  }
+  Problem pr(p);
+  pr.sh.floquet     = PETSC_FALSE;
+  pr.sh.steps       = 1000;
+  pr.sh.pre_periods = 0;
+  ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, given), 0);
+  EXPECT_EQ(dflt.iterations, given.iterations);
+  EXPECT_EQ(dflt.period, given.period);
+  EXPECT_EQ(dflt.Z0, given.Z0);
+}
+
 // Issue 20 item 4: case 1 at mu = 5 settles on a cycle of 2.14 T_lin (two loops per period, their
 // returns 2 % apart), beyond the bracket (T0/2, 2 T0) around the linear period, which Newton leaves from the
 // energy estimate. The pre-periods measure the period of their motion at its returns to a Poincare

@@ -17,7 +17,8 @@
 // O(nnz(W)) each; (S8) dU^{i+1} = v_f + A^-1 (h H r) by one more solve with the factorised A.
 // For a chain W is numerically banded; for a general model it may be dense and the passes then
 // cost as much as with the dense W (the result is the same either way).
-// Two back ends with identical equations: "dense" (N <= -theta_dense_max, default 200; under MPI
+// Two back ends with identical equations: "dense" (N <= -theta_dense_max; by default N <= 200, or
+// N <= 2000 when the model's matrices are dense, as a Craig-Bampton reduction's are: DefaultDense; under MPI
 // every rank steps the gathered state, so a small model costs the same on any rank count;
 // A^-1 B, A^-1 K, A^-1 F and Y precomputed, so a step is a few dense mat-vecs, as a hand-written
 // loop would do) and "sparse" (distributed AIJ, A factorised once by KSP/PC: PETSc's Cholesky
@@ -54,7 +55,10 @@ public:
   PetscErrorCode SetTheta(PetscReal theta);
   PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it);
   PetscErrorCode SetRhoScale(PetscReal s);
-  PetscErrorCode SetDenseMax(PetscInt n);
+  PetscErrorCode SetDenseMax(PetscInt n); // PETSC_DECIDE: from the model (DefaultDense)
+  // The back end chosen without -theta_dense_max for a model of n DOFs whose K and M have this
+  // fraction of non-zeros (the larger of the two).
+  static bool    DefaultDense(PetscInt n, PetscReal density);
   // Sparse back end: largest 3 n_c with the dense W and Y = A^-1 H (above: sparse W, (S8) by a solve;
   // < 0: by cost, see above), and the relative drop tolerance of the sparse W (0: exact non-zeros only).
   PetscErrorCode SetDelassusMax(PetscInt n, PetscReal drop);
@@ -126,7 +130,7 @@ private:
   MPI_Comm     comm_;
   std::string  prefix_   = "theta_";
   PetscReal    theta_    = 0.5, h_ = 0, fp_tol_ = 1e-12, rho_scale_ = 1.0, r_ref_ = 1.0;
-  PetscInt     fp_max_it_ = 500, dense_max_ = 200;
+  PetscInt     fp_max_it_ = 500, dense_max_ = PETSC_DECIDE;
   PetscInt     contact_solver_ = 0, ssn_max_it_ = 30; // -theta_contact_solver: 0 fp, 1 ssn, 2 auto
   bool         dense_     = true;
   const Model *model_     = nullptr;

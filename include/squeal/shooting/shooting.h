@@ -92,6 +92,10 @@ public:
   // -shoot_q_scale (start from q_scale * q0 of the energy estimate),
   // and the SNES/KSP under -shoot_ (-shoot_snes_max_it, -shoot_snes_monitor, -shoot_ksp_*).
   PetscErrorCode SetFromOptions();
+  // The defaults that follow from the model (N DOFs), for the options left at PETSC_DECIDE:
+  // steps per period, and the pre-periods with their tolerance (shooting.cpp says why).
+  static PetscInt DefaultSteps(PetscInt N);
+  static void     DefaultPrePeriods(PetscInt N, PetscInt *pre_periods, PetscReal *pre_tol);
   // Solves from (U0, dU0, T0). Not converging is reported in res (reason, best iterate), and
   // returned as an error after res is complete, so that the caller can write it first.
   PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
@@ -136,11 +140,15 @@ public:
   }
 
   // floquet_*: the -shoot_floquet_* options, read here, used by FloquetSolver (floquet/floquet.h).
-  PetscInt  steps = 1000, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
+  // steps: -shoot_steps, PETSC_DECIDE until SetUpFor chooses from the model (DefaultSteps).
+  PetscInt  steps = PETSC_DECIDE, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
   // SIGINT/SIGTERM raised from inside shooting (Newton and Krylov iterations, pre-periods, flows);
   // off where the caller polls between its own steps and keeps what it has (continuation).
   bool      interruptible = true;
+  // The model's default pre-periods (DefaultPrePeriods) where -shoot_pre_periods is not given; off
+  // where the start is already on a branch of cycles (continuation).
+  bool      auto_pre_periods = true;
   PetscReal period = 0; // -shoot_period: the start period (and the bracket's centre) instead of the linear one; 0: linear
   // -shoot_floquet_bisect_interp: width of phase interval below which the bisection of the phase
   // pieces starts its flows from interpolated states instead of from the start of the period.
@@ -168,11 +176,14 @@ public:
   PetscReal floquet_tol   = 1e-8;                      // -shoot_floquet_tol
   PetscBool floquet_monitor = PETSC_FALSE;             // -shoot_floquet_monitor
   PetscReal tangent_cache_mb = 2048; // -shoot_tangent_cache_mb
-  PetscInt  pre_periods      = 0;    // -shoot_pre_periods: at most this many periods of flow before Newton
-  // -shoot_pre_tol: ... stopping once the return distance is below. On the 2625-DOF pad 0.5 / 0.35 /
-  // 0.2 / 0.1 / 0.02 take 2 / 3 / 4 / 7 / 24 periods, then 8 / 6 / 6 / 6 / 5 Newton iterations; on
-  // the 31119-DOF pad 0.2 (6 periods) leaves Newton wandering at ||H||/||Z0|| ~ 1 and 0.02 (38) converges in 5.
-  PetscReal pre_tol          = 0.05;
+  // -shoot_pre_periods: at most this many periods of flow before Newton (PETSC_DECIDE until SetUpFor
+  // chooses from the model: DefaultPrePeriods).
+  PetscInt  pre_periods      = PETSC_DECIDE;
+  // -shoot_pre_tol: ... stopping once the return distance is below (PETSC_DECIDE: DefaultPrePeriods).
+  // On the 2625-DOF pad 0.5 / 0.35 / 0.2 / 0.1 / 0.02 take 2 / 3 / 4 / 7 / 24 periods, then 8 / 6 / 6 /
+  // 6 / 5 Newton iterations; on the 31119-DOF pad 0.2 (6 periods) leaves Newton wandering at
+  // ||H||/||Z0|| ~ 1 and 0.02 (38) converges in 5.
+  PetscReal pre_tol          = PETSC_DECIDE;
   // -shoot_deflate_power, -shoot_deflate_shift: deflation of the sliding equilibrium Z_e (Farrell,
   // Birkisson & Funke 2015): SNES solves m(Z0) (H, p) = 0, m = (d / d_0)^-p + shift,
   // d = |(omega_0 (U0 - U_e), dU0)|, d_0 at the start, so that neither Newton nor a globalisation on
@@ -201,6 +212,7 @@ private:
   PetscErrorCode PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x);
   PetscErrorCode Newton(Vec x, ShootingResult &res);
   PetscErrorCode NewtonFailure(SNESConvergedReason reason);
+  std::string    FailureHint(const ShootingResult &res) const; // the options that help, after a failed Newton
   PetscErrorCode GatherZ0(Vec x, ShootingResult &res);
   PetscErrorCode Orbit(Vec U0, Vec dU0, PetscReal T, ShootingResult &res);
   // The flow from the last residual evaluation (x, Z(x), last reaction): the anchor reuses it.
@@ -242,6 +254,12 @@ private:
   // count as period integrations pro rata.
   PetscInt        flow_stop_ = -1, partial_steps_ = 0;
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
+  // The values SetUpFor chose for steps, pre_periods, pre_tol (PETSC_DECIDE given), chosen again for
+  // the next model unless changed since; and whether they were chosen (reported once per solve).
+  PetscInt        auto_steps_ = -2, auto_pre_ = -2;
+  PetscReal       auto_pre_tol_ = -2;
+  PetscInt        auto_reported_ = -1;
+  PetscErrorCode  ChooseDefaults(); // in SetUpFor, once N_ is known
   // Called after every step of Flow while set (the pre-periods' section returns): step index, state, reactions.
   std::function<PetscErrorCode(PetscInt, Vec, Vec, const Eigen::VectorXd &)> on_step_;
   PetscReal       pre_measured_ = 0;   // ... the period their motion returned with (0: none)
