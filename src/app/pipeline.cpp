@@ -3,6 +3,7 @@
 #include "squeal/model/builders.h"
 #include "squeal/reduction/craig_bampton.h"
 
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <utility>
@@ -214,8 +215,14 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
     PetscCall(PetscPrintf(comm_, "route: %s\n", route.why.c_str()));
     PetscFunctionReturn(0);
   }
+  // Not given: at least the model's own default (200 above 200 DOFs: the 562-DOF pad's flow needs
+  // 22 periods to return within 0.02), so auto never calls a flow irregular that shooting's
+  // defaults would have followed back to its cycle.
   const PetscInt given = shooting.pre_periods;
-  route.pre_periods    = given > 0 ? given : Route::kAutoPrePeriods;
+  PetscInt       model_default;
+  PetscReal      model_tol;
+  Shooting::DefaultPrePeriods(model.Size(), &model_default, &model_tol);
+  route.pre_periods    = given > 0 ? given : std::max(Route::kAutoPrePeriods, model_default);
   shooting.pre_periods = route.pre_periods;
   shooting.after_pre_periods = [&](const Shooting::PrePeriodsOutcome &o, Vec U, Vec dU, bool *newton) -> PetscErrorCode {
     PetscFunctionBeginUser;

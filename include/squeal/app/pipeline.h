@@ -64,10 +64,11 @@ public:
   // Shooting from the estimate's orbit scaled by -shoot_q_scale (or -shoot_period's start); fails
   // when the estimate found no balance. The best iterate is in `cycle` also when it fails.
   PetscErrorCode Shoot();
-  // The choice of -analyses auto. The pre-periods (-shoot_pre_periods, kAutoPrePeriods when 0) run
-  // from the estimate as shooting's; when their return criterion holds (return distance below
-  // -shoot_pre_tol with a measured period) Newton goes on from there as in Shoot, else the route is
-  // the statistical steady state from their end state (Settle). A returned flow whose Newton does
+  // The choice of -analyses auto. The pre-periods (-shoot_pre_periods; when not given, the larger of
+  // kAutoPrePeriods and the model's default, Shooting::DefaultPrePeriods) run from the estimate as
+  // shooting's; when their return criterion holds (return distance below -shoot_pre_tol with a
+  // measured period) Newton goes on from there as in Shoot, else the route is the statistical
+  // steady state (Settle, from the mode by default: -steady_from_mode). A returned flow whose Newton does
   // not converge goes there too. One line says which and why.
   struct Route {
     static constexpr PetscInt   kAutoPrePeriods = 20;
