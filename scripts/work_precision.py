@@ -14,12 +14,12 @@ squeal finds the cycle (both with the theta-method, theta = 0.5, contact fixed p
                length series  1000 steps per period at 12.5, 25, 50, 100 periods (and --periods);
                fp tolerance   1000 steps per period with -theta_fp_tol 1e-6 and 1e-9 (CSV only: the
                               cycle does not change, so only the timing noise shows).
-  shooting   `squeal -analyses shooting -shoot_floquet 0`: Newton (SNES) on the initial state and the
+  shooting   `squeal -analyses shooting -floquet_compute 0`: Newton (SNES) on the initial state and the
              period of one period of the theta-method with -shoot_steps S steps (h = T / S), started
              from the energy estimate. Settings: S = 125 ... 8000 at -shoot_eps1 = -shoot_eps2 = 1e-8,
              and eps = 1e-3, 1e-5 at S = 1000. The Floquet multipliers are switched off for the timing
              runs (they cost 2N extra period integrations and are not part of finding the cycle); one
-             extra run at S = 1000, eps 1e-5 with -shoot_floquet 1 reports their cost (CSV row with
+             extra run at S = 1000, eps 1e-5 with -floquet_compute 1 reports their cost (CSV row with
              floquet = 1, not in the figure).
 
 Quantities. Transient: the settled-cycle period (the /transient period attribute, at full precision)
@@ -237,7 +237,7 @@ def analyse_transient(proc, cmd, h5):
 
 def shooting_cmd(squeal, scene, steps, eps, h5, floquet=False):
     return [squeal, "-scene", scene, "-analyses", "shooting", "-shoot_steps", str(steps),
-            "-shoot_eps1", f"{eps:g}", "-shoot_eps2", f"{eps:g}", "-shoot_floquet", "1" if floquet else "0",
+            "-shoot_eps1", f"{eps:g}", "-shoot_eps2", f"{eps:g}", "-floquet_compute", "1" if floquet else "0",
             "-output", h5]
 
 
@@ -562,7 +562,7 @@ def plot(rows, steps, out_png, info):
     fig.suptitle("squeal, 3-DOF cases: work-precision of the transient vs shooting (theta = 0.5)" + info["title_extra"],
                  x=0.06, ha="left", fontsize=12.5, fontweight="bold")
     fig.text(0.06, 0.948, f"reference for both methods: shooting, {info['ref_steps']} steps/period, eps {REF_EPS:g}. "
-             "Shooting runs with -shoot_floquet 0 (no Floquet multipliers). Wall time = whole program, least of "
+             "Shooting runs with -floquet_compute 0 (no Floquet multipliers). Wall time = whole program, least of "
              f"{info['repeat']} interleaved run(s).\nPoint labels (on the period error): steps per period (transient: "
              "below left; shooting: above right; grey: ends of the other series), simulated periods (length series).", fontsize=8.5, color="0.25", va="top")
     fig.subplots_adjust(left=0.065, right=0.985, bottom=0.105, top=0.915)
@@ -597,7 +597,7 @@ def cost_study(squeal, scenes, repeat, keep, lengths, tol=1e-4):
         shutil.copy2(squeal, snap)
         squeal = snap
         for case, _, clabel in CASES:
-            shoot = [squeal, "-scene", scenes[case], "-analyses", "shooting", "-shoot_floquet", "1", "-output", h5]
+            shoot = [squeal, "-scene", scenes[case], "-analyses", "shooting", "-floquet_compute", "1", "-output", h5]
             _, p = run_timed(shoot, h5)
             with open_results(h5) as r:
                 T_s = r.require("shooting", ("period",)).period
@@ -728,8 +728,8 @@ def main(argv=None, prog=PROG):
           + f"; {LEN_STEPS} steps per period at {', '.join(f'{x:g}' for x in lengths)} periods; "
           f"fixed-point tol {', '.join(f'{t:g}' for t in TOLS)} at {TOL_STEPS} steps ({periods:g} periods); "
           f"keep_every = steps // {args.records_per_period}")
-    print(f"shooting (-shoot_floquet 0): steps per period {', '.join(map(str, steps))} at eps {REF_EPS:g}; "
-          f"eps {', '.join(f'{e:g}' for e in SHOOT_EPS)} at {EPS_STEPS} steps; one run with -shoot_floquet 1 "
+    print(f"shooting (-floquet_compute 0): steps per period {', '.join(map(str, steps))} at eps {REF_EPS:g}; "
+          f"eps {', '.join(f'{e:g}' for e in SHOOT_EPS)} at {EPS_STEPS} steps; one run with -floquet_compute 1 "
           f"({EPS_STEPS} steps, eps {FLOQUET_EPS:g})")
     print(f"reference for both methods: shooting, {ref_steps} steps per period, eps {REF_EPS:g}; "
           f"wall time = least of {repeat} interleaved pass(es)")

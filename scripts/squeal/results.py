@@ -282,6 +282,15 @@ class Results:
                 fail(f"'{self.path}': /{name}/{d} is missing")
         return g
 
+    def walk(self):
+        """(path, raw attributes, data) of the root and of every group and dataset below it, in
+        h5py's visiting order; data is the dataset read whole, None for a group."""
+        yield "/", dict(self.h5.attrs.items()), None
+        items = []
+        self.h5.visititems(lambda name, obj: items.append((name, obj)))
+        for name, obj in items:
+            yield name, dict(obj.attrs.items()), obj[()] if isinstance(obj, h5py.Dataset) else None
+
     equilibrium = property(lambda self: self.group("equilibrium"))
     stability = property(lambda self: self.group("stability"))
     sweep = property(lambda self: self.group("sweep"))

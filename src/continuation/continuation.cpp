@@ -723,9 +723,7 @@ PetscErrorCode Continuation::View(const ContinuationResult &res, PetscViewer vie
 
 PetscErrorCode Continuation::Write(const ContinuationResult &res, io::H5Writer &out) const
 {
-  PetscMPIInt rank;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   if (res.points.empty()) PetscFunctionReturn(0);
   const hsize_t n = res.points.size();
   hsize_t       N = n ? res.points[0].peak_to_peak.size() : 0, m = 0;
@@ -782,7 +780,6 @@ PetscErrorCode Continuation::Write(const ContinuationResult &res, io::H5Writer &
   PetscCall(out.WriteIntArray("/continuation/events/point", {ne}, ei.data()));
   PetscCall(out.WriteAttribute("/continuation/events", "types", types.c_str()));
   PetscCall(out.WriteAttribute("/continuation/events", "details", details.c_str()));
-  (void)rank;
   PetscFunctionReturn(0);
 }
 

@@ -82,7 +82,7 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
         return false;
       // Factorisation options (-eq_mat_mumps_icntl_14, -theta_mat_mumps_*) are read when a factor is
       // set up, after the first check, and not at all when a run needs no such factor; the Floquet
-      // eigensolver's (-shoot_floquet_eps_*) once shooting has converged, and not at all by the block Arnoldi.
+      // eigensolver's (-floquet_eps_*) once shooting has converged, and not at all by the block Arnoldi.
       return !(known || std::strstr(name, "mat_mumps_") || std::strstr(name, "floquet_eps_"));
     },
     unused, count));
@@ -99,7 +99,7 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
 PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
 {
   static const char *const ours[]    = {"model_", "contact_", "reduce_", "stab_", "eq_", "sweep_",
-                                        "theta_", "transient_", "energy_", "shoot_", "cont_", "steady_"};
+                                        "theta_", "transient_", "energy_", "shoot_", "floquet_", "cont_", "steady_"};
   static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_",
                                         "_ds_", "_rg_", "_fn_", "_mat_", "_svd_", "_view", "_monitor", "converged_reason"};
   std::string unknown;

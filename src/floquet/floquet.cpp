@@ -1,6 +1,8 @@
 #include "squeal/floquet/floquet.h"
+#include "squeal/core/errors.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/interrupt.h"
+#include "squeal/core/options.h"
 #include "squeal/shooting/shooting.h"
 
 #include <Eigen/Eigenvalues>
@@ -9,6 +11,8 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace squeal {
 
@@ -26,37 +30,137 @@ void Classify(std::vector<std::complex<PetscReal>> &m, PetscInt &trivial, PetscR
 }
 } // namespace
 
+namespace {
+// The former names -shoot_floquet (the switch) and -shoot_floquet_* (the settings and the
+// eigensolver's -shoot_floquet_eps_*), each renamed to its name under `prefix` with PETSc's
+// deprecation warning, before the options are read under the new names.
+PetscErrorCode RenameDeprecated(MPI_Comm comm, const std::string &prefix)
+{
+  const std::string old = "-shoot_floquet";
+  char             *all = nullptr;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetAll(nullptr, &all));
+  std::vector<std::string> names;
+  for (const char *p = all; p && *p;) {
+    while (*p == ' ') ++p;
+    const char *e = p;
+    while (*e && *e != ' ') ++e;
+    const std::string tok(p, e);
+    if (tok == old || tok.rfind(old + "_", 0) == 0) names.push_back(tok);
+    p = e;
+  }
+  PetscCall(PetscFree(all));
+  if (names.empty()) PetscFunctionReturn(0);
+  PetscOptionsBegin(comm, nullptr, "Deprecated Floquet options", "FloquetSolver");
+  for (const std::string &o : names) {
+    const std::string n = "-" + prefix + (o == old ? std::string("compute") : o.substr(old.size() + 1));
+    PetscCall(PetscOptionsDeprecated(o.c_str(), n.c_str(), "0.1.0", nullptr));
+  }
+  PetscOptionsEnd();
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode FloquetSolver::SetFromOptions()
+{
+  const MPI_Comm comm = sh_.comm_;
+  OptionChecks   checks;
+  PetscFunctionBeginUser;
+  PetscCall(RenameDeprecated(comm, prefix_));
+  PetscOptionsBegin(comm, prefix_.c_str(), "Floquet multipliers of the limit cycle", "FloquetSolver");
+  PetscCall(PetscOptionsBool("-compute", "Compute Floquet multipliers at convergence of shooting", "FloquetSolver", compute, &compute, nullptr));
+  PetscCall(PetscOptionsInt("-dense_max", "Largest 2N for the dense monodromy (2N flows); above: SLEPc, matrix-free",
+                            "FloquetSolver", dense_max, &dense_max, nullptr));
+  PetscCall(PetscOptionsBool("-exact", "Monodromy from exact step tangents (dense theta back end; else finite differences)",
+                             "FloquetSolver", exact, &exact, nullptr));
+  PetscCall(PetscOptionsInt("-phases",
+                            "Average the monodromy over this many starting points within one step of the orbit "
+                            "(0: Gauss points on each piece where the contact statuses do not change, 1: none, K > 1: K midpoints; "
+                            "default 0 for the dense monodromy, 1 for the matrix-free one)",
+                            "FloquetSolver", phases, &phases, nullptr));
+  SquealOptionsReal("-bisect_interp",
+                    "Phase average: bisection intervals of the phase at most this wide start their flows from the mean of the "
+                    "two ends' states before their first differing status change (0: every flow from the start of the period)",
+                    "FloquetSolver", &bisect_interp, Range::NonNegative(), checks);
+  PetscCall(PetscOptionsInt("-nev", "Multipliers computed by the matrix-free route (its eigensolver: -floquet_eps_*)", "FloquetSolver",
+                            nev, &nev, nullptr));
+  PetscCall(PetscOptionsInt("-block",
+                            "Matrix-free route on exact tangents: block Arnoldi with this many columns per tangent integration "
+                            "(0: SLEPc Krylov-Schur, one column per integration)",
+                            "FloquetSolver", block, &block, nullptr));
+  PetscCall(PetscOptionsBool("-monitor", "Print the block Arnoldi's progress", "FloquetSolver", monitor, &monitor, nullptr));
+  PetscCall(PetscOptionsInt("-max_dim", "Block Arnoldi: largest Krylov basis (columns)", "FloquetSolver", max_dim, &max_dim, nullptr));
+  SquealOptionsReal("-tol", "Block Arnoldi: relative residual of the -floquet_nev largest multipliers", "FloquetSolver", &tol,
+                    Range::Positive(), checks);
+  PetscOptionsEnd();
+  PetscCall(checks.Run(comm));
+  PetscCheck(phases == PETSC_DECIDE || phases >= 0, comm, kErrInput, "option -%sphases = %" PetscInt_FMT ": expected >= 0",
+             prefix_.c_str(), phases);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode FloquetSolver::View(const ShootingResult &res, PetscViewer viewer) const
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (!ascii || res.floquet.empty()) PetscFunctionReturn(0);
+  std::string verdict = res.floquet_verdict == "undecided" ? "UNDECIDED" : res.stable_cycle ? "STABLE" : "UNSTABLE";
+  char        why[160];
+  std::snprintf(why, sizeof why, " (margin 1 - max |L| = %.2e %s error %.2e)", (double)res.floquet_margin,
+                res.floquet_verdict == "undecided" ? "within the" : "beyond the", (double)res.floquet_error);
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (%s, %" PetscInt_FMT " phase(s) in one step): trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s%s\n",
+                                   res.floquet_method.c_str(), res.floquet_phases,
+                                   res.floquet[res.trivial].real(), res.floquet[res.trivial].imag(),
+                                   std::abs(res.floquet[res.trivial] - 1.0), verdict.c_str(), why));
+  if (res.floquet_verdict == "undecided")
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  the multipliers' error is as large as the margin: refine -shoot_steps (the trivial "
+                                             "multiplier's distance from 1 falls with the step) before trusting the verdict\n"));
+  for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  %2zu  %+.6f %+.6fi  |L| = %.6f%s\n", i, res.floquet[i].real(), res.floquet[i].imag(),
+                                     std::abs(res.floquet[i]), (PetscInt)i == res.trivial ? "  (trivial)" : ""));
+  if (!res.floquet_at_z0.empty()) {
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "  without the phase average (Jacobian at Z0): largest non-trivial |L| = %.6f, trivial |L - 1| = %.2e\n",
+                                     res.largest_at_z0, std::abs(res.floquet_at_z0[res.trivial_at_z0] - 1.0)));
+    if ((res.largest_at_z0 < 1) != res.stable_cycle)
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  WARNING: the two verdicts differ: the stability of this cycle depends on where the "
+                                               "status changes fall in their steps; refine -shoot_steps\n"));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode FloquetSolver::Compute(Vec U0, Vec dU0, PetscReal T, ShootingResult &res)
 {
   PetscInt N;
   PetscFunctionBeginUser;
   PetscCall(VecGetSize(U0, &N));
-  if (2 * N <= sh_.floquet_dense_max) {
+  if (2 * N <= dense_max) {
     Eigen::MatrixXd Mono;
-    const bool      exact = sh_.floquet_exact && sh_.ti_->Dense();
-    if (sh_.floquet_exact && !sh_.ti_->Dense())
+    const bool      tangents = exact && sh_.ti_->Dense();
+    if (exact && !sh_.ti_->Dense())
       PetscCall(PetscPrintf(sh_.comm_, "shooting: exact monodromy needs the dense theta back end (N <= -theta_dense_max); "
                                        "using finite differences\n"));
-    res.floquet_method = exact ? "exact step tangents" : "finite differences";
+    res.floquet_method = tangents ? "exact step tangents" : "finite differences";
 
-    if (exact) PetscCall(MonodromyExact(U0, dU0, T, sh_.floquet_phases, Mono));
-    else PetscCall(Monodromy(U0, dU0, T, sh_.floquet_phases, Mono));
+    if (tangents) PetscCall(MonodromyExact(U0, dU0, T, phases, Mono));
+    else PetscCall(Monodromy(U0, dU0, T, phases, Mono));
     res.floquet_phases = (PetscInt)phase_s_.size();
     Eigen::EigenSolver<Eigen::MatrixXd> es(Mono, false);
     for (Eigen::Index i = 0; i < es.eigenvalues().size(); ++i) res.floquet.push_back(es.eigenvalues()(i));
     if (res.floquet_phases > 1) {
       // The discrete map's own Jacobian at Z0 as well: where the two disagree on stability, the
       // step is too coarse for the verdict.
-      if (exact) PetscCall(MonodromyExact(U0, dU0, T, 1, Mono));
+      if (tangents) PetscCall(MonodromyExact(U0, dU0, T, 1, Mono));
       else PetscCall(Monodromy(U0, dU0, T, 1, Mono));
       Eigen::EigenSolver<Eigen::MatrixXd> e0(Mono, false);
       for (Eigen::Index i = 0; i < e0.eigenvalues().size(); ++i) res.floquet_at_z0.push_back(e0.eigenvalues()(i));
     }
   } else {
     PetscCall(MatrixFree(U0, dU0, T, res.floquet));
-    res.floquet_method = !mono_exact_             ? "SLEPc, matrix-free finite differences"
-                         : sh_.floquet_block > 0 ? "block Arnoldi on exact step tangents"
-                                                  : "SLEPc, matrix-free exact step tangents";
+    res.floquet_method = !mono_exact_ ? "SLEPc, matrix-free finite differences"
+                         : block > 0  ? "block Arnoldi on exact step tangents"
+                                      : "SLEPc, matrix-free exact step tangents";
     res.floquet_phases = (PetscInt)phase_s_.size();
   }
   PetscReal others = 0;
@@ -222,7 +326,7 @@ PetscErrorCode FloquetSolver::SetUpPhases(Vec U0, Vec dU0, PetscReal T, PetscInt
 // of transitions. A probe is the flow from Z0 + s d with its transitions and, over the steps it
 // ran, its states and the reactions entering each step. Two probes a < b whose transitions agree
 // before step j0 have states at j0 that are smooth in s on [a, b]: once b - a <=
-// -shoot_floquet_bisect_interp (W), the flow from the midpoint starts at j0 from the mean of theirs
+// -floquet_bisect_interp (W), the flow from the midpoint starts at j0 from the mean of theirs
 // and stops after the last differing transition, so a bisection level costs the steps between the
 // two, not a period. All deeper probes are then linear interpolants along the first such [a, b]:
 // state error O(W^2). Measured (3-DOF cases, planar and rectilinear, 500-4000 steps): the same
@@ -305,7 +409,7 @@ public:
     for (size_t j = p; j < kb; j += 3) last = std::max(last, sb[j]), first = std::min(first, sb[j]);
     Probe      pm;
     const auto has = [](const Probe &q, PetscInt j) { return j >= q.lo && j < q.lo + q.Z.cols(); };
-    if (b - a <= s_.floquet_bisect_interp && has(pa, first) && has(pb, first)) {
+    if (b - a <= f_.bisect_interp && has(pa, first) && has(pb, first)) {
       for (size_t j = 0; j < p; j += 3)
         if (sa[j] < first) pm.sig.insert(pm.sig.end(), sa.begin() + j, sa.begin() + j + 3);
       const Eigen::VectorXd z  = 0.5 * (pa.Z.col(first - pa.lo) + pb.Z.col(first - pb.lo));
@@ -467,7 +571,7 @@ PetscErrorCode FloquetSolver::MatrixFree(Vec U0, Vec dU0, PetscReal T, std::vect
   PetscCall(VecCopy(dU0, mono_dU0_));
   mono_T_ = T;
   // Starting points within one step of the orbit, and their flows (the bases of the differences).
-  PetscCall(SetUpPhases(U0, dU0, T, s.floquet_phases, false));
+  PetscCall(SetUpPhases(U0, dU0, T, phases, false));
   const size_t K = phase_s_.size();
   mono_start_.clear(), mono_base_.clear();
   mono_start_.resize(K), mono_base_.resize(K);
@@ -478,12 +582,12 @@ PetscErrorCode FloquetSolver::MatrixFree(Vec U0, Vec dU0, PetscReal T, std::vect
     PetscCall(s.Flow(mono_start_[k].first, mono_start_[k].second, T, mono_base_[k].first, mono_base_[k].second));
   }
   // One phase on the dense back end: exact tangent products along the flow from Z0.
-  mono_exact_ = s.floquet_exact && s.ExactJacobian() && K == 1 && phase_s_[0] == 0;
+  mono_exact_ = exact && s.ExactJacobian() && K == 1 && phase_s_[0] == 0;
   if (mono_exact_) {
     if (!mono_x_) PetscCall(s.CreateState(mono_x_.out()));
     PetscCall(s.Pack(U0, dU0, T, mono_x_));
   }
-  if (mono_exact_ && s.floquet_block > 0) {
+  if (mono_exact_ && block > 0) {
     PetscCall(BlockArnoldi(mult));
     PetscFunctionReturn(0);
   }
@@ -492,12 +596,12 @@ PetscErrorCode FloquetSolver::MatrixFree(Vec U0, Vec dU0, PetscReal T, std::vect
   PetscCall(MatCreateShell(s.comm_, 2 * s.nloc_, 2 * s.nloc_, 2 * N, 2 * N, this, A.out()));
   PetscCall(MatShellSetOperation(A, MATOP_MULT, (void (*)(void))MonodromyMult));
   PetscCall(EPSCreate(s.comm_, eps.out()));
-  PetscCall(EPSSetOptionsPrefix(eps, "shoot_floquet_"));
+  PetscCall(EPSSetOptionsPrefix(eps, prefix_.c_str()));
   PetscCall(EPSSetOperators(eps, A, nullptr));
   PetscCall(EPSSetProblemType(eps, EPS_NHEP));
   PetscCall(EPSSetType(eps, EPSKRYLOVSCHUR));
   PetscCall(EPSSetWhichEigenpairs(eps, EPS_LARGEST_MAGNITUDE));
-  PetscCall(EPSSetDimensions(eps, PetscMin(s.floquet_nev, 2 * N - 2), PETSC_DEFAULT, PETSC_DEFAULT));
+  PetscCall(EPSSetDimensions(eps, PetscMin(nev, 2 * N - 2), PETSC_DEFAULT, PETSC_DEFAULT));
   // Difference products carry ~fd_step relative noise: ask for no more than that allows.
   PetscCall(EPSSetTolerances(eps, mono_exact_ ? 1e-8 : 1e-6, 200));
   PetscCall(EPSSetFromOptions(eps));
@@ -523,9 +627,9 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
   using Eigen::Index;
   using Eigen::MatrixXd;
   Shooting   &s = sh_;
-  const Index N = s.N_, n = 2 * N, b = s.floquet_block;
-  const Index nev = std::min<Index>(s.floquet_nev, n - 2);
-  const bool  mon = s.floquet_monitor;
+  const Index N = s.N_, n = 2 * N, b = block;
+  const Index nev = std::min<Index>(this->nev, n - 2);
+  const bool  mon = monitor;
   PetscFunctionBeginUser;
   if (n <= 4 * b) {
     // A few blocks would span the space: the whole monodromy in one integration of n columns.
@@ -539,8 +643,8 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
     products_ = 1;
     PetscFunctionReturn(0);
   }
-  // Blocks of the Krylov basis: up to -shoot_floquet_max_dim columns, and never past the space.
-  const Index mmax = std::max<Index>(1, std::min<Index>(s.floquet_max_dim / b, n / b - 1));
+  // Blocks of the Krylov basis: up to -floquet_max_dim columns, and never past the space.
+  const Index mmax = std::max<Index>(1, std::min<Index>(max_dim / b, n / b - 1));
   MatrixXd    V(n, (mmax + 1) * b), H = MatrixXd::Zero((mmax + 1) * b, mmax * b), W, C;
   {
     // The same pseudo-random start on every rank (every rank holds the whole basis).
@@ -593,13 +697,13 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
     if (mon)
       PetscCall(PetscPrintf(s.comm_, "  Floquet block Arnoldi: %" PetscInt_FMT " x %" PetscInt_FMT " columns, largest |L| = %.6f, worst relative residual of the %" PetscInt_FMT " largest %.2e\n",
                             (PetscInt)(j + 1), (PetscInt)b, ritz.empty() ? 0.0 : (double)std::abs(ritz[0]), (PetscInt)nev, (double)worst));
-    if (k >= nev && worst <= s.floquet_tol) break;
+    if (k >= nev && worst <= tol) break;
     // An invariant subspace: the Ritz values are exact.
     if (R.diagonal().cwiseAbs().minCoeff() <= 1e-13 * H.topLeftCorner(k, k).norm()) break;
     if (j + 1 == mmax) {
       char msg[200];
       std::snprintf(msg, sizeof msg, "Floquet block Arnoldi: the %d largest multipliers reached a relative residual of %.1e, not %.1e, "
-                    "in %d columns (-shoot_floquet_max_dim)", (int)nev, (double)worst, (double)s.floquet_tol, (int)k);
+                    "in %d columns (-floquet_max_dim)", (int)nev, (double)worst, (double)tol, (int)k);
       PetscCall(PetscPrintf(s.comm_, "shooting: warning: %s\n", msg));
     }
   }

@@ -60,22 +60,20 @@ struct RecordSink {
   void Size(size_t records)
   {
     on = true;
+    Resize(records);
+  }
+  void Cut()
+  {
+    if (on) Resize(n);
+  }
+  void Resize(size_t records)
+  {
     res.t.resize(records);
     res.U.resize(records * N);
     res.V.resize(records * N);
     res.R.resize(records * 3 * nc);
     res.status.resize(records * nc);
     res.energy.resize(records * 4);
-  }
-  void Cut()
-  {
-    if (!on) return;
-    res.t.resize(n);
-    res.U.resize(n * N);
-    res.V.resize(n * N);
-    res.R.resize(n * 3 * nc);
-    res.status.resize(n * nc);
-    res.energy.resize(n * 4);
   }
 };
 

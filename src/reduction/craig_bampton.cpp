@@ -363,66 +363,6 @@ PetscErrorCode RenumberContacts(MPI_Comm comm, const cb::Partition &p, ContactSe
 
 } // namespace
 
-PetscErrorCode CraigBampton::SetOptionsPrefix(const char *prefix)
-{
-  PetscFunctionBeginUser;
-  prefix_ = prefix ? prefix : "";
-  PetscFunctionReturn(0);
-}
-PetscErrorCode CraigBampton::SetFMax(PetscReal fmax)
-{
-  PetscFunctionBeginUser;
-  fmax_ = fmax;
-  PetscFunctionReturn(0);
-}
-PetscErrorCode CraigBampton::SetNModes(PetscInt nmodes)
-{
-  PetscFunctionBeginUser;
-  nmodes_ = nmodes;
-  PetscFunctionReturn(0);
-}
-PetscErrorCode CraigBampton::SetFBand(PetscReal fband)
-{
-  PetscFunctionBeginUser;
-  fband_ = fband;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode CraigBampton::SetRayleighShortcut(bool on)
-{
-  PetscFunctionBeginUser;
-  rayleigh_ = on ? PETSC_TRUE : PETSC_FALSE;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode CraigBampton::SetRedundantFactor(bool on)
-{
-  PetscFunctionBeginUser;
-  redundant_ = on ? PETSC_TRUE : PETSC_FALSE;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode CraigBampton::SetRHSBlock(PetscInt block)
-{
-  PetscFunctionBeginUser;
-  rhs_block_ = block;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode CraigBampton::SetInterfaceModes(PetscInt k)
-{
-  PetscFunctionBeginUser;
-  iface_modes_ = k;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode CraigBampton::SetInterfaceFMax(PetscReal fmax)
-{
-  PetscFunctionBeginUser;
-  iface_fmax_ = fmax;
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
 {
   const char *const types[] = {"none", "craig_bampton"};

@@ -56,16 +56,6 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Shooting", &period, Range::NonNegative(), checks);
   SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
                     Range::Positive(), checks);
-  PetscCall(PetscOptionsBool("-floquet", "Compute Floquet multipliers at convergence", "Shooting", floquet, &floquet, nullptr));
-  PetscCall(PetscOptionsInt("-floquet_dense_max", "Largest 2N for the dense monodromy (2N flows); above: SLEPc, matrix-free",
-                            "Shooting", floquet_dense_max, &floquet_dense_max, nullptr));
-  PetscCall(PetscOptionsBool("-floquet_exact", "Monodromy from exact step tangents (dense theta back end; else finite differences)",
-                             "Shooting", floquet_exact, &floquet_exact, nullptr));
-  PetscCall(PetscOptionsInt("-floquet_phases",
-                            "Average the monodromy over this many starting points within one step of the orbit "
-                            "(0: Gauss points on each piece where the contact statuses do not change, 1: none, K > 1: K midpoints; "
-                            "default 0 for the dense monodromy, 1 for the matrix-free one)",
-                            "Shooting", floquet_phases, &floquet_phases, nullptr));
   PetscCall(PetscOptionsBool("-exact_jacobian",
                              "Jacobian products from the exact step tangents along the stored flow (dense theta back end; "
                              "else finite differences of the flow)",
@@ -111,25 +101,8 @@ PetscErrorCode Shooting::SetFromOptions()
                             "With -shoot_linear_pc: recycle up to this many Krylov directions of the earlier linear solves, whose exact "
                             "products (one block tangent integration per Newton iteration) make the preconditioner exact on them (0: off)",
                             "Shooting", recycle, &recycle, nullptr));
-  SquealOptionsReal("-floquet_bisect_interp",
-                    "Phase average: bisection intervals of the phase at most this wide start their flows from the mean of the "
-                    "two ends' states before their first differing status change (0: every flow from the start of the period)",
-                    "Shooting", &floquet_bisect_interp, Range::NonNegative(), checks);
-  PetscCall(PetscOptionsInt("-floquet_nev", "Multipliers computed by the matrix-free route (-shoot_floquet_eps_*)", "Shooting",
-                            floquet_nev, &floquet_nev, nullptr));
-  PetscCall(PetscOptionsInt("-floquet_block",
-                            "Matrix-free route on exact tangents: block Arnoldi with this many columns per tangent integration "
-                            "(0: SLEPc Krylov-Schur, one column per integration)",
-                            "Shooting", floquet_block, &floquet_block, nullptr));
-  PetscCall(PetscOptionsBool("-floquet_monitor", "Print the block Arnoldi's progress", "Shooting", floquet_monitor, &floquet_monitor, nullptr));
-  PetscCall(PetscOptionsInt("-floquet_max_dim", "Block Arnoldi: largest Krylov basis (columns)", "Shooting", floquet_max_dim,
-                            &floquet_max_dim, nullptr));
-  SquealOptionsReal("-floquet_tol", "Block Arnoldi: relative residual of the -shoot_floquet_nev largest multipliers", "Shooting",
-                    &floquet_tol, Range::Positive(), checks);
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
-  PetscCheck(floquet_phases == PETSC_DECIDE || floquet_phases >= 0, comm_, kErrInput,
-             "option -shoot_floquet_phases = %" PetscInt_FMT ": expected >= 0", floquet_phases);
   PetscCheck(steps == PETSC_DECIDE || steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
   PetscCheck(pre_periods == PETSC_DECIDE || pre_periods >= 0, comm_, kErrInput,
              "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
@@ -174,6 +147,7 @@ PetscErrorCode Shooting::SetFromOptions()
       return static_cast<Shooting *>(ctx)->interruptible ? InterruptPoint(PetscObjectComm((PetscObject)k), "shooting's Krylov iterations") : 0;
     },
     this, nullptr));
+  PetscCall(floquet_.SetFromOptions());
   PetscFunctionReturn(0);
 }
 
@@ -438,7 +412,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(Orbit(aU_, adU_, res.period, res));
   const PetscInt newton_steps = evaluations_ * steps + partial_steps_;
   res.newton_evaluations      = evaluations_ + (partial_steps_ + steps - 1) / steps;
-  if (res.converged && floquet) {
+  if (res.converged && floquet_.compute) {
     PetscCall(PetscLogEventBegin(shoot_ev::floquet, 0, 0, 0, 0));
     PetscCall(floquet_.Compute(aU_, adU_, res.period, res));
     PetscCall(PetscLogEventEnd(shoot_ev::floquet, 0, 0, 0, 0));
@@ -592,39 +566,14 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
                                    : res.frac_stuck > 0                         ? "stick/slip"
                                                                                 : "pure sliding",
                                    100 * (double)res.frac_separated, 100 * (double)res.frac_stuck));
-  if (!res.floquet.empty()) {
-    std::string verdict = res.floquet_verdict == "undecided" ? "UNDECIDED" : res.stable_cycle ? "STABLE" : "UNSTABLE";
-    char        why[160];
-    std::snprintf(why, sizeof why, " (margin 1 - max |L| = %.2e %s error %.2e)", (double)res.floquet_margin,
-                  res.floquet_verdict == "undecided" ? "within the" : "beyond the", (double)res.floquet_error);
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Floquet multipliers (%s, %" PetscInt_FMT " phase(s) in one step): trivial one %.6f%+.6fi, |L - 1| = %.2e; cycle %s%s\n",
-                                     res.floquet_method.c_str(), res.floquet_phases,
-                                     res.floquet[res.trivial].real(), res.floquet[res.trivial].imag(),
-                                     std::abs(res.floquet[res.trivial] - 1.0), verdict.c_str(), why));
-    if (res.floquet_verdict == "undecided")
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  the multipliers' error is as large as the margin: refine -shoot_steps (the trivial "
-                                               "multiplier's distance from 1 falls with the step) before trusting the verdict\n"));
-    for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  %2zu  %+.6f %+.6fi  |L| = %.6f%s\n", i, res.floquet[i].real(), res.floquet[i].imag(),
-                                       std::abs(res.floquet[i]), (PetscInt)i == res.trivial ? "  (trivial)" : ""));
-    if (!res.floquet_at_z0.empty()) {
-      PetscCall(PetscViewerASCIIPrintf(viewer,
-                                       "  without the phase average (Jacobian at Z0): largest non-trivial |L| = %.6f, trivial |L - 1| = %.2e\n",
-                                       res.largest_at_z0, std::abs(res.floquet_at_z0[res.trivial_at_z0] - 1.0)));
-      if ((res.largest_at_z0 < 1) != res.stable_cycle)
-        PetscCall(PetscViewerASCIIPrintf(viewer, "  WARNING: the two verdicts differ: the stability of this cycle depends on where the "
-                                                 "status changes fall in their steps; refine -shoot_steps\n"));
-    }
-  }
+  PetscCall(floquet_.View(res, viewer));
   PetscCall(PetscViewerASCIIPopTab(viewer));
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) const
 {
-  PetscMPIInt rank;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   hsize_t sizes[3] = {res.Z0.size(), res.orbit_t.size(), res.peak_to_peak.size()};
   PetscCallMPI(MPI_Bcast(sizes, 3, MPI_UNSIGNED_LONG_LONG, 0, comm_));
   const hsize_t nh = res.residual_history.size();

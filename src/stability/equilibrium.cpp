@@ -9,13 +9,6 @@
 
 namespace squeal {
 
-PetscErrorCode EquilibriumSolver::SetOptionsPrefix(const char *prefix)
-{
-  PetscFunctionBeginUser;
-  prefix_ = prefix ? prefix : "";
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode EquilibriumSolver::SetMaxPasses(PetscInt n)
 {
   PetscFunctionBeginUser;

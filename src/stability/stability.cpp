@@ -24,13 +24,6 @@ PetscReal StabilityResult::MaxOscillatorySigma(PetscInt *which) const
   return best;
 }
 
-PetscErrorCode StabilitySolver::SetOptionsPrefix(const char *prefix)
-{
-  PetscFunctionBeginUser;
-  prefix_ = prefix ? prefix : "";
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode StabilitySolver::SetComputeModes(bool modes)
 {
   PetscFunctionBeginUser;

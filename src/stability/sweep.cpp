@@ -61,13 +61,6 @@ PetscReal SweepResult::MaxSigma(size_t iv, size_t imu) const
   return best;
 }
 
-PetscErrorCode SweepSolver::SetOptionsPrefix(const char *prefix)
-{
-  PetscFunctionBeginUser;
-  prefix_ = prefix ? prefix : "";
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode SweepSolver::SetFromOptions(PetscReal default_V)
 {
   PetscFunctionBeginUser;

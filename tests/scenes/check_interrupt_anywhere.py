@@ -19,7 +19,8 @@ import subprocess
 import sys
 import time
 
-import h5py
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from squeal.results import status_of  # noqa: E402
 
 
 def main(argv):
@@ -59,9 +60,7 @@ def main(argv):
     if absent:
         checks.append((not os.path.exists(out), f"no {out} left behind"))
     elif os.path.exists(out):
-        with h5py.File(out, "r") as f:
-            s = f.attrs["status"]
-            s = s.decode() if isinstance(s, bytes) else str(s)
+        s = status_of(out)
         checks.append((s.startswith("interrupted (" + name), f"root status '{s}'"))
     else:
         checks.append((False, f"{out} exists"))

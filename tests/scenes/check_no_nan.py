@@ -9,11 +9,10 @@ import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
-from squeal.results import Results, decode  # noqa: E402
+from squeal.results import Results  # noqa: E402
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--output", required=True)
@@ -35,26 +34,18 @@ def numeric_nan(v):
     return arr.dtype.kind == "f" and (np.isnan(arr).any() or (np.isfinite(arr) & (np.abs(arr) >= 1e300)).any())
 
 
-def visit(name, obj):
-    for k, v in obj.attrs.items():
-        if numeric_nan(v):
-            bad.append(f"attribute {name}:{k}")
-    if isinstance(obj, h5py.Dataset) and numeric_nan(obj[()]):
-        bad.append(f"dataset {name}")
-
-
 with Results(a.output) as r:
-    f = r.h5
-    for k, v in f.attrs.items():
-        if numeric_nan(v):
-            bad.append(f"attribute /:{k}")
-    f.visititems(visit)
+    for name, attrs, data in r.walk():
+        bad += [f"attribute {name}:{k}" for k, v in attrs.items() if numeric_nan(v)]
+        if data is not None and numeric_nan(data):
+            bad.append(f"dataset {name}")
     for obj, name, value in a.attr:
-        got = decode(f[obj].attrs[name])
+        got = (r.attrs if obj == "/" else r.group(obj.strip("/")).attrs)[name]
         if str(got) != value and not (np.asarray(got).dtype.kind in "iuf" and float(got) == float(value)):
             bad.append(f"{obj}:{name} = {got!r}, expected {value}")
     for path, value in a.dataset:
-        got = np.asarray(f[path][()], dtype=float)
+        top, _, rest = path.strip("/").partition("/")
+        got = np.asarray(r.group(top)[rest], dtype=float)
         if got.size == 0 or not (got == float(value)).all():
             bad.append(f"{path} = {got!r}, expected every entry {value}")
 if bad:

@@ -113,18 +113,18 @@ def sweep_interrupt(args, cmd):
         ok(r.status.startswith("interrupted (" + name), f"root status '{r.status}'")
         if not ok("sweep/failed" in r, "has /sweep/failed"):
             return
-        failed = np.asarray(r.h5["sweep/failed"][()])
-        ev = np.asarray(r.h5["sweep/eigenvalues"][()])
+        failed = np.asarray(r.sweep["failed"])
+        ev = r.sweep.array("eigenvalues")
         done, skipped = int(np.sum(failed == 0)), int(np.sum(failed == 2))
         ok(done >= 20 and skipped > 0 and done + skipped == failed.size,
            f"{done} point(s) computed, {skipped} not computed (2), of {failed.size}; none 'without sliding'")
         ok(np.all(np.isfinite(ev[failed == 0][..., 0][:, 0])), "every computed point has its eigenvalues")
         ok(np.all(np.isnan(ev[failed == 2])), "no eigenvalue at a point not computed")
-        ok(int(r.h5["sweep"].attrs["interrupted"]) == 1, "/sweep interrupted = 1")
+        ok(int(r.sweep.attrs["interrupted"]) == 1, "/sweep interrupted = 1")
         m = re.search(r"the sweep's points so far \((\d+) of (\d+),", signal_after.stderr)
         ok(m is not None and int(m.group(1)) == failed.size - skipped and int(m.group(2)) == failed.size,
            f"the message counts the points computed ({m.group(0) if m else 'no count in it'})")
-        ok(np.all(np.isnan(np.asarray(r.h5["sweep"].attrs["critical_mu"]))), "no critical mu from a grid with holes")
+        ok(np.all(np.isnan(np.asarray(r.sweep.attrs["critical_mu"], dtype=float))), "no critical mu from a grid with holes")
 
 
 def concurrent(args, cmds):

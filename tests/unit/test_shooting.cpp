@@ -98,7 +98,7 @@ TEST(Shooting, MatrixFreeJacobianMatchesDenseFiniteDifferences)
   p.V = 0.75;
   Problem        pr(p);
   ShootingResult sr;
-  pr.sh.floquet = PETSC_FALSE;
+  pr.sh.Floquet().compute = PETSC_FALSE;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0);
   const PetscInt N = 3;
   Vec            x, v, y, U0, dU0;
@@ -122,7 +122,7 @@ TEST(Shooting, MatrixFreeJacobianMatchesDenseFiniteDifferences)
   ASSERT_EQ(pr.sh.SetAnchor(x), 0);
 
   Eigen::MatrixXd Mono;
-  pr.sh.floquet_phases = 1; // the Jacobian of the discrete map at Z0 itself, as the products are
+  pr.sh.Floquet().phases = 1; // the Jacobian of the discrete map at Z0 itself, as the products are
   ASSERT_EQ(pr.sh.Monodromy(U0, dU0, sr.period, Mono), 0);
   // Dense dZ/dT by a forward difference in T.
   Vec U1, dU1, U2, dU2;
@@ -177,7 +177,7 @@ TEST(Shooting, RobustStartsEndWithAResultOrAReason)
     p.mu = s.mu;
     Problem pr(p);
     ASSERT_TRUE(pr.est.found);
-    pr.sh.floquet = PETSC_FALSE; // not under test here
+    pr.sh.Floquet().compute = PETSC_FALSE; // not under test here
     Vec U0, dU0;
     VecDuplicate(pr.est.U0, &U0), VecDuplicate(pr.est.dU0, &dU0);
     VecWAXPY(U0, -1.0, pr.eq.U, pr.est.U0), VecAYPX(U0, s.scale, pr.eq.U);
@@ -220,10 +220,10 @@ TEST(Shooting, MatrixFreeFloquetMatchesDenseMonodromy)
   // The SLEPc route for large models against the dense monodromy, on the 4-contact chain, both
   // averaged over the same 4 starting phases (finite differences against exact tangents on one rank).
   Problem        pr([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
-  pr.sh.floquet_phases = 4;
+  pr.sh.Floquet().phases = 4;
   ShootingResult dense, mf;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, dense), 0);
-  pr.sh.floquet_dense_max = 0;
+  pr.sh.Floquet().dense_max = 0;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, mf), 0);
   ASSERT_GE(mf.floquet.size(), 5u);
   for (size_t i = 0; i < 5; ++i) {
@@ -243,7 +243,7 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
   // equal d up to O(|d|). The discrete map is only piecewise
   // smooth: the step in which the impact falls moves as the orbit shifts, so the secants differ
   // by an amount that does not shrink with h. That is the miss of the trivial multiplier of the
-  // discrete map's own Jacobian (-shoot_floquet_phases 1), and the reason for the phase average.
+  // discrete map's own Jacobian (-floquet_phases 1), and the reason for the phase average.
   ThreeDofParams p; // case 1: separation/slip, one impact per period
   const PetscInt N = 3;
   std::vector<double> spread_at;
@@ -251,7 +251,7 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
     Problem pr(p);
     pr.sh.steps = steps;
     pr.sh.eps1 = pr.sh.eps2 = 1e-10;
-    pr.sh.floquet           = PETSC_FALSE;
+    pr.sh.Floquet().compute = PETSC_FALSE;
     ShootingResult sr;
     ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0);
     Vec U0, dU0, U, dU, U1, dU1;
@@ -314,7 +314,7 @@ TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
   Problem chain([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
   for (Problem *pr : {&p1, &p2, &chain}) {
     ASSERT_TRUE(pr->est.found);
-    pr->sh.floquet = PETSC_FALSE;
+    pr->sh.Floquet().compute = PETSC_FALSE;
     ShootingResult sr;
     ASSERT_EQ(pr->sh.Solve(pr->model, pr->eq, pr->ti, pr->est.U0, pr->est.dU0, pr->est.T0, sr), 0);
     PetscInt N, lo, hi;
@@ -327,7 +327,7 @@ TEST(Shooting, ExactStepTangentsGiveTheFiniteDifferenceMonodromy)
     for (PetscInt i = lo; i < hi; ++i) VecSetValue(U0, i, z[i], INSERT_VALUES), VecSetValue(dU0, i, z[N + i], INSERT_VALUES);
     VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
     Eigen::MatrixXd fd, exact;
-    pr->sh.floquet_phases = 1; // the discrete map's own monodromy
+    pr->sh.Floquet().phases = 1; // the discrete map's own monodromy
     ASSERT_EQ(pr->sh.Monodromy(U0, dU0, sr.period, fd), 0);
     ASSERT_EQ(pr->sh.MonodromyExact(U0, dU0, sr.period, exact), 0);
     // Columns scaled as the finite differences are (||U0|| vs ||dU0||): compare relative to each
@@ -360,7 +360,7 @@ TEST(Shooting, PhaseAveragedMultipliersConvergeWithTheStep)
     for (PetscInt phases : {PETSC_DECIDE, (PetscInt)1}) {
       Problem pr(p);
       pr.sh.steps          = steps;
-      pr.sh.floquet_phases = phases;
+      pr.sh.Floquet().phases = phases;
       ShootingResult sr;
       ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0);
       ASSERT_GE(sr.trivial, 0);
@@ -385,7 +385,7 @@ TEST(Shooting, PhaseAveragedMultipliersConvergeWithTheStep)
 TEST(Shooting, InterpolatedPhaseBisectionFindsTheExactPieces)
 {
   // The phase pieces of the averaged monodromy are located by bisection on the status changes.
-  // Below -shoot_floquet_bisect_interp (1/32) of a step the flows start from interpolated states
+  // Below -floquet_bisect_interp (1/32) of a step the flows start from interpolated states
   // just before the first differing transition instead of at t = 0. Reference: the same bisection
   // with every flow from the start of the period (interp 0, the former route). Measured on all
   // three cycles: the same pieces and multipliers to the last digit; Floquet 25 -> 17, 36 -> 19,
@@ -405,7 +405,7 @@ TEST(Shooting, InterpolatedPhaseBisectionFindsTheExactPieces)
     ShootingResult sr[2];
     for (int k = 0; k < 2; ++k) {
       Problem pr(p);
-      if (k == 1) pr.sh.floquet_bisect_interp = 0;
+      if (k == 1) pr.sh.Floquet().bisect_interp = 0;
       ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr[k]), 0) << "V = " << c.V;
     }
     EXPECT_EQ(sr[0].floquet_phases, sr[1].floquet_phases) << "V = " << c.V;
@@ -481,7 +481,7 @@ TEST(Shooting, ExactTangentFlowMatchesFiniteDifferencesOfTheFlow)
   Problem case2(p3);
   for (Problem *pr : {&chain, &case2}) {
     ShootingResult sr;
-    pr->sh.floquet = PETSC_FALSE;
+    pr->sh.Floquet().compute = PETSC_FALSE;
     ASSERT_EQ(pr->sh.Solve(pr->model, pr->eq, pr->ti, pr->est.U0, pr->est.dU0, pr->est.T0, sr), 0);
     ASSERT_TRUE(pr->sh.ExactJacobian());
     PetscInt N;
@@ -542,12 +542,12 @@ TEST(Shooting, LinearisedPreconditionerTakesTheDenseNewtonIterates)
     {
       Problem pr(p);
       ASSERT_TRUE(pr.est.found);
-      pr.sh.floquet = PETSC_FALSE;
+      pr.sh.Floquet().compute = PETSC_FALSE;
       ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, ref), 0);
     }
     {
       Problem pr(p);
-      pr.sh.floquet            = PETSC_FALSE;
+      pr.sh.Floquet().compute = PETSC_FALSE;
       pr.sh.jacobian_dense_max = 1; // never the dense Jacobian
       pr.sh.ew                 = PETSC_FALSE; // linear solves as exact as the dense LU's, to compare iterates
       pr.sh.recycle            = 0;
@@ -582,7 +582,7 @@ TEST(Shooting, RecycledKrylovSubspaceKeepsTheIteratesAndSavesTangentIntegrations
     for (int r = 0; r < 2; ++r) {
       Problem pr(p);
       ASSERT_TRUE(pr.est.found);
-      pr.sh.floquet            = PETSC_FALSE;
+      pr.sh.Floquet().compute = PETSC_FALSE;
       pr.sh.jacobian_dense_max = 1;
       pr.sh.ew                 = PETSC_FALSE;
       pr.sh.recycle            = r == 0 ? 0 : 32;
@@ -613,14 +613,14 @@ TEST(Shooting, MatrixFreeExactFloquetMatchesTheDenseExactMonodromy)
   ChainParams cp;
   cp.cells = 12;
   Problem pr([&](Model &m) { return BuildChain(PETSC_COMM_WORLD, cp, m); });
-  pr.sh.floquet_phases = 1;
-  pr.sh.floquet_nev    = 6;
+  pr.sh.Floquet().phases = 1;
+  pr.sh.Floquet().nev    = 6;
   ShootingResult dense;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, dense), 0);
-  pr.sh.floquet_dense_max = 0;
+  pr.sh.Floquet().dense_max = 0;
   for (PetscInt block : {0, 8}) {
     ShootingResult mf;
-    pr.sh.floquet_block = block;
+    pr.sh.Floquet().block = block;
     ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, mf), 0);
     EXPECT_EQ(mf.floquet_method, block ? "block Arnoldi on exact step tangents" : "SLEPc, matrix-free exact step tangents");
     ASSERT_GE(mf.floquet.size(), 5u);
@@ -645,11 +645,11 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
     ShootingResult ref, pre;
     {
       Problem pr(p);
-      pr.sh.floquet = PETSC_FALSE;
+      pr.sh.Floquet().compute = PETSC_FALSE;
       ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, ref), 0);
     }
     Problem pr(p);
-    pr.sh.floquet     = PETSC_FALSE;
+    pr.sh.Floquet().compute = PETSC_FALSE;
     pr.sh.pre_periods = 200;
     pr.sh.pre_tol     = 1e-3;
     ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, pre), 0) << "V = " << V;
@@ -725,7 +725,7 @@ TEST(Shooting, PrePeriodsMeasureAPeriodBeyondTheBracketAndConvergeThere)
   {
     Problem pr(p);
     ASSERT_TRUE(pr.est.found);
-    pr.sh.floquet = PETSC_FALSE;
+    pr.sh.Floquet().compute = PETSC_FALSE;
     ShootingResult sr;
     PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
     const PetscErrorCode e = pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr);
@@ -736,7 +736,7 @@ TEST(Shooting, PrePeriodsMeasureAPeriodBeyondTheBracketAndConvergeThere)
   }
   Problem pr(p);
   ASSERT_TRUE(pr.est.found);
-  pr.sh.floquet     = PETSC_FALSE;
+  pr.sh.Floquet().compute = PETSC_FALSE;
   pr.sh.pre_periods = 100;
   ShootingResult sr;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0) << sr.reason;
@@ -778,7 +778,7 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   ASSERT_EQ(VecDuplicate(pr.est.dU0, &dU0), 0);
   ASSERT_EQ(VecAXPBYPCZ(U0, 0.1, 0.9, 0.0, pr.est.U0, pr.eq.U), 0); // U_e + 0.1 (U0 - U_e)
   ASSERT_EQ(VecAXPBY(dU0, 0.1, 0.0, pr.est.dU0), 0);
-  pr.sh.floquet = PETSC_FALSE;
+  pr.sh.Floquet().compute = PETSC_FALSE;
   ShootingResult plain, defl;
   PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
   const PetscErrorCode e = pr.sh.Solve(pr.model, pr.eq, pr.ti, U0, dU0, pr.est.T0, plain);

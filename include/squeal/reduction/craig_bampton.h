@@ -75,25 +75,30 @@ struct ReductionInfo {
 class CraigBampton {
 public:
   explicit CraigBampton(MPI_Comm comm) : comm_(comm) {}
-  PetscErrorCode SetOptionsPrefix(const char *prefix);
-  PetscErrorCode SetFMax(PetscReal fmax);     // Hz; <= 0: no frequency cut-off
-  PetscErrorCode SetNModes(PetscInt nmodes);  // < 0: no count limit
-  PetscErrorCode SetFBand(PetscReal fband);   // Hz; > 0: refuse fmax below it
+  PetscErrorCode SetOptionsPrefix(const char *prefix)
+  {
+    prefix_ = prefix ? prefix : "";
+    return 0;
+  }
+  // The setters of the options below (plain assignments, read at Reduce).
+  PetscErrorCode SetFMax(PetscReal fmax) { fmax_ = fmax; return 0; }          // Hz; <= 0: no frequency cut-off
+  PetscErrorCode SetNModes(PetscInt nmodes) { nmodes_ = nmodes; return 0; }   // < 0: no count limit
+  PetscErrorCode SetFBand(PetscReal fband) { fband_ = fband; return 0; }      // Hz; > 0: refuse fmax below it
   // true (default): a C found equal to a M + b K (to 1e-12) is reduced as a M_r + b K_r, saving one
   // dense product; false: C is always projected (-reduce_rayleigh).
-  PetscErrorCode SetRayleighShortcut(bool on);
+  PetscErrorCode SetRayleighShortcut(bool on) { rayleigh_ = on ? PETSC_TRUE : PETSC_FALSE; return 0; }
   // true (default): on several ranks every rank factorises the whole K_II and solves its share of
   // the constraint modes alone; false: one distributed MUMPS factorisation and solve (-reduce_redundant).
-  PetscErrorCode SetRedundantFactor(bool on);
+  PetscErrorCode SetRedundantFactor(bool on) { redundant_ = on ? PETSC_TRUE : PETSC_FALSE; return 0; }
   // The constraint modes are solved in blocks of this many right-hand sides, with an interrupt
   // poll between blocks (<= 0: all in one solve; -reduce_rhs_block). The factor is the same:
   // only the right-hand side is split, and the modes agree to round-off.
-  PetscErrorCode SetRHSBlock(PetscInt block);
+  PetscErrorCode SetRHSBlock(PetscInt block) { rhs_block_ = block; return 0; }
   // Interface reduction: keep the k lowest in-plane characteristic constraint modes (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
   // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
-  PetscErrorCode SetInterfaceModes(PetscInt k);
-  PetscErrorCode SetInterfaceFMax(PetscReal fmax);
+  PetscErrorCode SetInterfaceModes(PetscInt k) { iface_modes_ = k; return 0; }
+  PetscErrorCode SetInterfaceFMax(PetscReal fmax) { iface_fmax_ = fmax; return 0; }
   // -reduce_type, -reduce_fmax, -reduce_nmodes, -reduce_fband; *enabled tells whether
   // -reduce_type asks for a reduction.
   PetscErrorCode SetFromOptions(bool *enabled = nullptr);

@@ -15,8 +15,8 @@
 // m J + F grad m^T: the sliding equilibrium, where H = 0 for any T, is no longer a root. Newton stops
 // when ||H|| / ||Z0|| < eps1 and |dT| / T < eps2 at the same iterate x_k, dT being the Newton
 // correction computed at x_k (-shoot_eps1, -shoot_eps2); that last correction is applied.
-// At convergence, the Floquet multipliers of the orbit (-shoot_floquet): FloquetSolver
-// (floquet/floquet.h), on this object's flow and tangents.
+// At convergence, the Floquet multipliers of the orbit (-floquet_compute): FloquetSolver
+// (floquet/floquet.h, options -floquet_*), on this object's flow and tangents.
 // Sources: src/shooting/shooting.cpp (options, set-up, Solve and its steps, orbit, report), pre_periods.cpp
 // (pre-periods, their period measurement), newton.cpp (residual, Jacobian products, anchor, deflation,
 // SNES callbacks), tangent.cpp (flows, tangent flows, the dense bordered Jacobian, the linearised preconditioner).
@@ -87,10 +87,9 @@ class Shooting {
 public:
   explicit Shooting(MPI_Comm comm) : comm_(comm) {}
   ~Shooting();
-  // -shoot_steps, -shoot_eps1, -shoot_eps2, -shoot_fd_step, -shoot_floquet, -shoot_floquet_dense_max,
-  // -shoot_floquet_exact, -shoot_floquet_phases, -shoot_floquet_nev,
-  // -shoot_q_scale (start from q_scale * q0 of the energy estimate),
-  // and the SNES/KSP under -shoot_ (-shoot_snes_max_it, -shoot_snes_monitor, -shoot_ksp_*).
+  // -shoot_steps, -shoot_eps1, -shoot_eps2, -shoot_fd_step, -shoot_q_scale (start from q_scale * q0 of the energy estimate),
+  // and the SNES/KSP under -shoot_ (-shoot_snes_max_it, -shoot_snes_monitor, -shoot_ksp_*); then the
+  // Floquet solver's (-floquet_*, FloquetSolver::SetFromOptions).
   PetscErrorCode SetFromOptions();
   // The defaults that follow from the model (N DOFs), for the options left at PETSC_DECIDE:
   // steps per period, and the pre-periods with their tolerance (shooting.cpp says why).
@@ -128,20 +127,22 @@ public:
   PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
   PetscErrorCode SetAnchor(Vec x); // Z_a = Z0(x), G_a = G(Z(x))
-  // The monodromy averaged over -shoot_floquet_phases starting points, by finite differences of
+  // The monodromy averaged over -floquet_phases starting points, by finite differences of
   // the flow or from the exact step tangents (FloquetSolver::Monodromy, MonodromyExact).
   PetscErrorCode Monodromy(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
   {
-    return floquet_.Monodromy(U0, dU0, T, floquet_phases, Mono);
+    return floquet_.Monodromy(U0, dU0, T, floquet_.phases, Mono);
   }
   PetscErrorCode MonodromyExact(Vec U0, Vec dU0, PetscReal T, Eigen::MatrixXd &Mono)
   {
-    return floquet_.MonodromyExact(U0, dU0, T, floquet_phases, Mono);
+    return floquet_.MonodromyExact(U0, dU0, T, floquet_.phases, Mono);
   }
+  // The Floquet solver and its settings (-floquet_*), read by SetFromOptions.
+  FloquetSolver       &Floquet() { return floquet_; }
+  const FloquetSolver &Floquet() const { return floquet_; }
 
-  // floquet_*: the -shoot_floquet_* options, read here, used by FloquetSolver (floquet/floquet.h).
   // steps: -shoot_steps, PETSC_DECIDE until SetUpFor chooses from the model (DefaultSteps).
-  PetscInt  steps = PETSC_DECIDE, floquet_dense_max = 400, floquet_nev = 6, floquet_phases = PETSC_DECIDE;
+  PetscInt  steps = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
   // SIGINT/SIGTERM raised from inside shooting (Newton and Krylov iterations, pre-periods, flows);
   // off where the caller polls between its own steps and keeps what it has (continuation).
@@ -150,10 +151,6 @@ public:
   // where the start is already on a branch of cycles (continuation).
   bool      auto_pre_periods = true;
   PetscReal period = 0; // -shoot_period: the start period (and the bracket's centre) instead of the linear one; 0: linear
-  // -shoot_floquet_bisect_interp: width of phase interval below which the bisection of the phase
-  // pieces starts its flows from interpolated states instead of from the start of the period.
-  PetscReal floquet_bisect_interp = 1.0 / 32;
-  PetscBool floquet = PETSC_TRUE, floquet_exact = PETSC_TRUE;
   // -shoot_exact_jacobian: tangent products (else finite differences); -shoot_jacobian_dense_max:
   // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
   // factorised (the Krylov solve then converges in one iteration); above it GMRES on the products.
@@ -172,9 +169,6 @@ public:
   // 562-DOF pad cycle 8 or 32 recycled directions cut GMRES from 89 to 79 or 76 iterations in all and
   // the blocks ate the saving (docs/records.md, 2026-11-25).
   PetscInt  recycle = 0;
-  PetscInt  floquet_block = 16, floquet_max_dim = 640; // -shoot_floquet_block, -shoot_floquet_max_dim
-  PetscReal floquet_tol   = 1e-8;                      // -shoot_floquet_tol
-  PetscBool floquet_monitor = PETSC_FALSE;             // -shoot_floquet_monitor
   PetscReal tangent_cache_mb = 2048; // -shoot_tangent_cache_mb
   // -shoot_pre_periods: at most this many periods of flow before Newton (PETSC_DECIDE until SetUpFor
   // chooses from the model: DefaultPrePeriods).

@@ -32,7 +32,11 @@ struct SlidingEquilibrium {
 class EquilibriumSolver {
 public:
   explicit EquilibriumSolver(MPI_Comm comm) : comm_(comm) {}
-  PetscErrorCode SetOptionsPrefix(const char *prefix);
+  PetscErrorCode SetOptionsPrefix(const char *prefix)
+  {
+    prefix_ = prefix ? prefix : "";
+    return 0;
+  }
   PetscErrorCode SetMaxPasses(PetscInt n);
   // -eq_max_passes, -eq_view, and the bordered solver's -eq_ksp_*, -eq_pc_*.
   PetscErrorCode SetFromOptions();

@@ -79,7 +79,11 @@ struct StabilityResult {
 class StabilitySolver {
 public:
   explicit StabilitySolver(MPI_Comm comm) : comm_(comm) {}
-  PetscErrorCode SetOptionsPrefix(const char *prefix);
+  PetscErrorCode SetOptionsPrefix(const char *prefix)
+  {
+    prefix_ = prefix ? prefix : "";
+    return 0;
+  }
   PetscErrorCode SetComputeModes(bool modes);
   // -stab_view, -stab_modes, -stab_fmax, -stab_fmin, -stab_nev_max, and everything of the PEP
   // under -stab_.

@@ -48,7 +48,11 @@ using SweepPoint = std::function<PetscErrorCode(PetscReal mu, PetscReal V, Stabi
 class SweepSolver {
 public:
   explicit SweepSolver(MPI_Comm comm) : comm_(comm) {}
-  PetscErrorCode SetOptionsPrefix(const char *prefix);
+  PetscErrorCode SetOptionsPrefix(const char *prefix)
+  {
+    prefix_ = prefix ? prefix : "";
+    return 0;
+  }
   // -sweep_mu_min/max/n, -sweep_v_min/max/n, -sweep_bisect_tol, -sweep_monitor.
   PetscErrorCode SetFromOptions(PetscReal default_V);
   PetscErrorCode Solve(const SweepPoint &point, SweepResult &res); // collective
