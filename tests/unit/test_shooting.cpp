@@ -696,14 +696,14 @@ TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
   ShootingResult dflt, given;
   {
     Problem pr(p);
-    pr.sh.floquet = PETSC_FALSE;
+    pr.sh.Floquet().compute = PETSC_FALSE;
     ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, dflt), 0);
     EXPECT_EQ(pr.sh.steps, 1000);
     EXPECT_EQ(pr.sh.pre_periods, 0);
     EXPECT_EQ(pr.sh.pre_tol, 0.05);
   }
   Problem pr(p);
-  pr.sh.floquet     = PETSC_FALSE;
+  pr.sh.Floquet().compute = PETSC_FALSE;
   pr.sh.steps       = 1000;
   pr.sh.pre_periods = 0;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, given), 0);
