@@ -431,9 +431,6 @@ TEST(Reduction, CutOffBelowTheBandIsRefused)
 // counted here on the dense copies of K and M, independently of the integrator's MatGetInfo.
 TEST(Reduction, ReducedModelTakesTheDenseThetaBackEndByDefault)
 {
-  PetscMPIInt size;
-  ASSERT_EQ(MPI_Comm_size(PETSC_COMM_WORLD, &size), 0);
-  if (size > 1) GTEST_SKIP() << "the back-end choice is the same on any rank count; counted on one";
   Model full, red;
   ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, SmallPad(), full), 0);
   CraigBampton cb(PETSC_COMM_WORLD);
