@@ -707,9 +707,14 @@ TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
   pr.sh.steps       = 1000;
   pr.sh.pre_periods = 0;
   ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, given), 0);
+  // The same iterations to round-off: bit for bit on one rank; on two, components that are zero
+  // up to round-off (1e-24 against -3e-24, seen in CI) come out of reductions in another order.
   EXPECT_EQ(dflt.iterations, given.iterations);
-  EXPECT_EQ(dflt.period, given.period);
-  EXPECT_EQ(dflt.Z0, given.Z0);
+  EXPECT_NEAR(dflt.period / given.period, 1.0, 1e-14);
+  ASSERT_EQ(dflt.Z0.size(), given.Z0.size());
+  PetscReal scale = 0;
+  for (PetscReal z : given.Z0) scale = std::max(scale, std::abs(z));
+  for (size_t i = 0; i < given.Z0.size(); ++i) EXPECT_NEAR(dflt.Z0[i], given.Z0[i], 1e-13 * scale) << i;
 }
 
 // Issue 20 item 4: case 1 at mu = 5 settles on a cycle of 2.14 T_lin (two loops per period, their
