@@ -113,6 +113,9 @@ class Stability(Group):
         un, ev = self.unstable, self.eigenvalues
         below = int(np.count_nonzero((ev[:, 0] > 0) & (ev[:, 1] / (2 * math.pi) < fmin)))
         below = f"; {below} unstable mode(s) below fmin, not reported" if below else ""
+        fmax = a.get("fmax", 0)
+        above = int(np.count_nonzero((ev[:, 0] > 0) & (ev[:, 1] / (2 * math.pi) > fmax))) if fmax > 0 else 0
+        below += f"; {above} unstable mode(s) above fmax, not reported" if above else ""
         if un.size:
             s, w = ev[un[0]]
             return (f"UNSTABLE: {un.size} unstable mode(s){f' above fmin = {fmin:g} Hz' if fmin > 0 else ''}; most "

@@ -127,14 +127,20 @@ PetscErrorCode ReportStability(MPI_Comm comm, const StabilityResult &res, const 
   PetscFunctionBeginUser;
   // A stable verdict holds only for the part of the spectrum that was computed completely.
   const StabilityResult::Verdict verdict = res.GetVerdict();
-  std::string                    below;
-  if (const PetscInt nb = res.UnstableBelowBand())
-    below = "; " + std::to_string(nb) + " unstable mode(s) below -stab_fmin = " + Num(res.fmin) + " Hz are outside the band";
+  std::string                    below, listed;
+  if (const PetscInt nb = res.UnstableBelowBand()) {
+    below  = "; " + std::to_string(nb) + " unstable mode(s) below -stab_fmin = " + Num(res.fmin) + " Hz are outside the band";
+    listed = "unst<fmin";
+  }
+  if (const PetscInt na = res.UnstableAboveBand()) {
+    below += "; " + std::to_string(na) + " unstable mode(s) above -stab_fmax = " + Num(res.fmax) + " Hz are outside the band";
+    listed += std::string(listed.empty() ? "" : ", ") + "unst>fmax";
+  }
   const std::string band = Num(res.fmin) + "-" + (res.fmax > 0 ? Num(res.fmax) : std::string("inf")) + " Hz";
   if (verdict == StabilityResult::Verdict::Stable && !below.empty())
-    PetscCall(PetscPrintf(comm, "no unstable mode in the band %s (%s)%s (listed as unst<fmin, not reported)\n", band.c_str(),
+    PetscCall(PetscPrintf(comm, "no unstable mode in the band %s (%s)%s (listed as %s, not reported)\n", band.c_str(),
                           res.all_eigenvalues ? "all eigenvalues computed" : ("every eigenvalue up to " + Num(res.CompleteUpTo()) + " Hz computed").c_str(),
-                          below.c_str()));
+                          below.c_str(), listed.c_str()));
   else if (verdict == StabilityResult::Verdict::Stable && res.all_eigenvalues)
     PetscCall(PetscPrintf(comm, "sliding equilibrium is stable (all eigenvalues computed): no self-excited vibration expected\n"));
   else if (verdict == StabilityResult::Verdict::Stable)
@@ -156,6 +162,9 @@ PetscErrorCode ReportStability(MPI_Comm comm, const StabilityResult &res, const 
     PetscCall(PetscPrintf(comm, "unstable mode %" PetscInt_FMT ": f = %.4f Hz, T = %.6f s, growth rate %.4f 1/s\n", i,
                           (double)m.Frequency(), (double)m.Period(), (double)m.sigma));
   }
+  if (verdict == StabilityResult::Verdict::Unstable && res.UnstableAboveBand())
+    PetscCall(PetscPrintf(comm, "  and %" PetscInt_FMT " unstable mode(s) above the band (-stab_fmax = %s Hz), listed as unst>fmax: not reported\n",
+                          res.UnstableAboveBand(), Num(res.fmax).c_str()));
   PetscFunctionReturn(0);
 }
 

@@ -209,7 +209,7 @@ PetscErrorCode StabilitySolver::Solve(const Model &model, const SlidingEquilibri
   });
   res.unstable.clear();
   for (size_t i = 0; i < res.modes.size(); ++i)
-    if (res.modes[i].Unstable() && res.modes[i].Frequency() >= fmin_) res.unstable.push_back((PetscInt)i);
+    if (res.modes[i].Unstable() && res.InBand(res.modes[i])) res.unstable.push_back((PetscInt)i);
   std::sort(res.unstable.begin(), res.unstable.end(),
             [&](PetscInt a, PetscInt b) { return res.modes[a].sigma > res.modes[b].sigma; });
   PetscFunctionReturn(0);
@@ -227,8 +227,8 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
   PetscCall(PetscViewerASCIIPrintf(viewer, "  mode   sigma (1/s)  omega (rad/s)     f (Hz)       T (s)      zeta  status     backward err\n"));
   for (size_t i = 0; i < res.modes.size(); ++i) {
     const Mode &m      = res.modes[i];
-    const bool  below  = m.Unstable() && m.Frequency() < res.fmin;
-    const char *status = m.Unstable() ? (below ? "unst<fmin" : m.Oscillatory() ? "UNSTABLE" : "DIVERGENT") : "stable";
+    const bool  below  = m.Unstable() && m.Frequency() < res.fmin, above = m.Unstable() && !below && !res.InBand(m);
+    const char *status = m.Unstable() ? (below ? "unst<fmin" : above ? "unst>fmax" : m.Oscillatory() ? "UNSTABLE" : "DIVERGENT") : "stable";
     if (m.Oscillatory())
       PetscCall(PetscViewerASCIIPrintf(viewer, "  %4zu  %12.5f  %13.5f  %9.4f  %10.7f  %8.5f  %-9s  %9.2e\n", i, (double)m.sigma,
                                        (double)m.omega, (double)m.Frequency(), (double)m.Period(), (double)m.DampingRatio(),
@@ -242,6 +242,12 @@ PetscErrorCode StabilitySolver::View(const StabilityResult &res, PetscViewer vie
     std::snprintf(fmin, sizeof fmin, "%g", (double)res.fmin);
     PetscCall(PetscViewerASCIIPrintf(viewer, "  unst<fmin: %" PetscInt_FMT " unstable mode(s) below -%sfmin = %s Hz, outside the band: not reported\n",
                                      nb, prefix_.c_str(), fmin));
+  }
+  if (const PetscInt na = res.UnstableAboveBand()) {
+    char fmax[32];
+    std::snprintf(fmax, sizeof fmax, "%g", (double)res.fmax);
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  unst>fmax: %" PetscInt_FMT " unstable mode(s) above -%sfmax = %s Hz, outside the band: not reported (raise -%sfmax to include them)\n",
+                                     na, prefix_.c_str(), fmax, prefix_.c_str()));
   }
   PetscFunctionReturn(0);
 }

@@ -525,6 +525,20 @@ TEST(Verdicts, StabilityVerdictIsUndecidedUnlessTheBandIsCovered)
   EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Stable);
   r.unstable = {1};
   EXPECT_EQ(r.GetVerdict(), StabilityResult::Verdict::Unstable);
+
+  // One above -stab_fmax likewise (the solve converges modes beyond the band); fmax 0 has no top.
+  Mode v;
+  v.sigma = 7, v.omega = 2 * PETSC_PI * 1200;
+  r.fmax = 1000;
+  EXPECT_FALSE(r.InBand(v));
+  EXPECT_TRUE(r.InBand(r.modes[0]));
+  EXPECT_FALSE(r.InBand(r.modes[1])); // 50 Hz < fmin
+  r.modes.push_back(std::move(v));
+  EXPECT_EQ(r.UnstableAboveBand(), 1);
+  EXPECT_EQ(r.UnstableBelowBand(), 1);
+  r.fmax = 0;
+  EXPECT_TRUE(r.InBand(r.modes[2]));
+  EXPECT_EQ(r.UnstableAboveBand(), 0);
 }
 
 TEST(Verdicts, ZeroFrequencyAndCompleteSpectrumAreInfinite)

@@ -45,7 +45,7 @@ struct Mode {
 
 struct StabilityResult {
   std::vector<Mode>     modes;    // sorted by omega, then sigma
-  std::vector<PetscInt> unstable; // indices into modes, most unstable first (f >= fmin)
+  std::vector<PetscInt> unstable; // indices into modes, most unstable first (in the band: InBand)
   PetscInt              requested = 0, converged = 0, n_r = 0, solves = 0;
   PetscReal             fmin = 0, fmax = 0;             // the band asked for (Hz); fmax 0: none
   PetscReal             complete_radius = 0;            // R_c (1/s), see above; inf: all eigenvalues
@@ -55,7 +55,7 @@ struct StabilityResult {
   PetscReal CompleteUpTo() const { return complete_radius / (2 * PETSC_PI); }
   bool      BandCovered() const { return all_eigenvalues || complete_radius > 2 * PETSC_PI * fmax; }
 
-  // Unstable: an unstable mode in the band (f >= fmin). Stable: none, and the band is covered (or
+  // Unstable: an unstable mode in the band (fmin <= f <= fmax). Stable: none, and the band is covered (or
   // the whole spectrum is known). Undecided: none among the eigenvalues computed, which do not
   // cover the band; energy, shooting and continuation refuse to go on from it.
   enum class Verdict { Unstable, Stable, Undecided };
@@ -64,11 +64,21 @@ struct StabilityResult {
     if (!unstable.empty()) return Verdict::Unstable;
     return all_eigenvalues || (fmax > 0 && BandCovered()) ? Verdict::Stable : Verdict::Undecided;
   }
-  // Unstable modes below the band (f < fmin): listed, not reported.
+  // The band the user asked for: fmin <= f, and f <= fmax unless fmax is 0. The table lists the
+  // modes outside it (the solve converges some above fmax), and nothing downstream starts from
+  // them: a user who gives a band means the squeal in it.
+  bool InBand(const Mode &m) const { return m.Frequency() >= fmin && (fmax <= 0 || m.Frequency() <= fmax); }
+  // Unstable modes below the band (f < fmin) and above it (f > fmax): listed, not reported.
   PetscInt UnstableBelowBand() const
   {
     PetscInt n = 0;
     for (const Mode &m : modes) n += m.Unstable() && m.Frequency() < fmin;
+    return n;
+  }
+  PetscInt UnstableAboveBand() const
+  {
+    PetscInt n = 0;
+    for (const Mode &m : modes) n += m.Unstable() && fmax > 0 && m.Frequency() > fmax;
     return n;
   }
 
