@@ -16,7 +16,8 @@ From squeal's /transient records it answers what a cycle cannot when the motion 
              modal coordinate from a least-squares projection of U(t) - mean on Re phi, Im phi;
   verdict    periodic (every line a harmonic of one base), quasi-periodic (two or more
              incommensurate bases explain the lines) or broadband (lines carry less than half of
-             the power), with the evidence.
+             the power), with the evidence; unresolved, in place of the first two, when at the
+             record's resolution more than a quarter of the band would be named by chance.
 --write stores it as /steady_state in RESULTS.h5; --plot draws the signal and the PSD.
 The functions are importable (tests/scenes/test_steady_state.py checks them on exact signals).
 """
@@ -175,11 +176,33 @@ def classify(f, amp, power_in_lines, total_power, df_res):
         names[i] = nm if nm else "unexplained"
     names = [names[i] for i in range(len(f))]
     if len(bases) == 1:
-        return "periodic", bases, names, f"every line a harmonic of f1 = {bases[0]:.6g} Hz"
-    ratio = bases[1] / bases[0]
-    unexplained = sum(1 for n in names if n == "unexplained")
-    verdict = "quasi-periodic" if unexplained == 0 else "broadband"
-    return verdict, bases, names, f"two bases f1 = {bases[0]:.6g} Hz, f2 = {bases[1]:.6g} Hz (ratio {ratio:.6f}), {unexplained} line(s) unexplained"
+        verdict, evidence = "periodic", f"every line a harmonic of f1 = {bases[0]:.6g} Hz"
+    else:
+        ratio = bases[1] / bases[0]
+        unexplained = sum(1 for n in names if n == "unexplained")
+        verdict = "quasi-periodic" if unexplained == 0 else "broadband"
+        evidence = f"two bases f1 = {bases[0]:.6g} Hz, f2 = {bases[1]:.6g} Hz (ratio {ratio:.6f}), {unexplained} line(s) unexplained"
+    # Names given by chance: with a short record's tolerance most of the band is some name (unexplained
+    # lines stay evidence: a wider tolerance could only name more).
+    chance = naming_chance(f, bases, df_res)
+    if verdict != "broadband" and len(f) > len(bases) and chance > MAX_NAMING_CHANCE:
+        tol = max(3 * df_res, 0.0)
+        verdict = "unresolved"
+        evidence += (f"; but at the record's resolution (+-{tol:.3g} Hz) {100 * chance:.0f} % of the band would be named "
+                     "by chance: run on (-steady_max_periods)")
+    return verdict, bases, names, evidence
+
+
+MAX_NAMING_CHANCE = 0.25
+
+
+def naming_chance(f, bases, df_res):
+    """The share of (0, F] (F the highest line) within the naming tolerance of a name."""
+    F, tol = max(f), 3 * df_res
+    if len(bases) == 1:
+        return min(1.0, 2 * tol / bases[0])
+    names = sum(1 for m in range(-4, 5) for n in range(-4, 5) if 0 < m * bases[0] + n * bases[1] <= F + tol)
+    return min(1.0, names * 2 * tol / F)
 
 
 def dominant_period_records(x):

@@ -291,6 +291,31 @@ void FitLines(const std::vector<double> &x, double dt, const std::vector<double>
   for (Eigen::Index j = 0; j < k; ++j) f.push_back(fr[j]), amp.push_back(std::hypot(ab[j], ab[k + j]));
 }
 
+namespace {
+
+// A line is named k f1 or m f1 + n f2 within 3 resolutions of the whole record.
+double NameTolerance(double df_res, double g) { return std::max(3 * df_res, 1e-9 * g); }
+
+// Above this chance of naming a line anywhere in the band, the names prove nothing.
+constexpr double kMaxNamingChance = 0.25;
+
+// The share of (0, F] (F: the highest line) within the tolerance of a name: 2 tol / f1 for the
+// harmonics of one base; with two, the names m f1 + n f2 (|m|, |n| <= 4) in (0, F] times 2 tol / F.
+double NamingChance(const std::vector<double> &f, const std::vector<double> &bases, double df_res)
+{
+  const double F = *std::max_element(f.begin(), f.end()), tol = NameTolerance(df_res, 0);
+  if (bases.size() == 1) return std::min(1.0, 2 * tol / bases[0]);
+  int names = 0;
+  for (int m = -4; m <= 4; ++m)
+    for (int n = -4; n <= 4; ++n) {
+      const double g = m * bases[0] + n * bases[1];
+      names += g > 0 && g <= F + tol;
+    }
+  return std::min(1.0, names * 2 * tol / F);
+}
+
+} // namespace
+
 Classification Classify(const std::vector<double> &f, const std::vector<double> &amp, double power_in_lines, double total_power,
                         double df_res)
 {
@@ -315,7 +340,7 @@ Classification Classify(const std::vector<double> &f, const std::vector<double> 
   }
   c.bases = {f1};
   auto name_of = [&](double g, std::string &name) {
-    const double tol = std::max(3 * df_res, 1e-9 * g);
+    const double tol = NameTolerance(df_res, g);
     if (c.bases.size() == 1) {
       const double k = std::nearbyint(g / c.bases[0]);
       if (k >= 1 && std::abs(g - k * c.bases[0]) <= tol) {
@@ -347,16 +372,27 @@ Classification Classify(const std::vector<double> &f, const std::vector<double> 
     }
     if (ok) c.names[i] = nm;
   }
+  // Names given by chance: a line anywhere in the band would be named, within the tolerance, with
+  // this probability. A short record's tolerance can cover most of the band (the brake, 50 periods:
+  // +-1164 Hz, and 16 573 Hz was called "2 f1" of 7 741 Hz): a periodic or quasi-periodic verdict
+  // is then "unresolved".
+  // Unexplained lines are evidence whatever the tolerance (a wider one could only name more).
+  const double chance = NamingChance(f, c.bases, df_res);
   if (c.bases.size() == 1) {
     std::snprintf(b, sizeof b, "every line a harmonic of f1 = %.6g Hz", c.bases[0]);
     c.verdict = "periodic", c.evidence = b;
-    return c;
+  } else {
+    const long unexplained = std::count(c.names.begin(), c.names.end(), std::string("unexplained"));
+    std::snprintf(b, sizeof b, "two bases f1 = %.6g Hz, f2 = %.6g Hz (ratio %.6f), %ld line(s) unexplained", c.bases[0], c.bases[1],
+                  c.bases[1] / c.bases[0], unexplained);
+    c.verdict  = unexplained == 0 ? "quasi-periodic" : "broadband";
+    c.evidence = b;
   }
-  const long unexplained = std::count(c.names.begin(), c.names.end(), std::string("unexplained"));
-  std::snprintf(b, sizeof b, "two bases f1 = %.6g Hz, f2 = %.6g Hz (ratio %.6f), %ld line(s) unexplained", c.bases[0], c.bases[1],
-                c.bases[1] / c.bases[0], unexplained);
-  c.verdict  = unexplained == 0 ? "quasi-periodic" : "broadband";
-  c.evidence = b;
+  if (c.verdict != "broadband" && f.size() > c.bases.size() && chance > kMaxNamingChance) {
+    std::snprintf(b, sizeof b, "; but at the record's resolution (+-%.3g Hz) %.0f %% of the band would be named by chance: run on (-steady_max_periods)",
+                  NameTolerance(df_res, 0), 100 * chance);
+    c.verdict = "unresolved", c.evidence += b;
+  }
   return c;
 }
 

@@ -43,6 +43,18 @@ class SteadyState(unittest.TestCase):
         x = np.random.default_rng(1).standard_normal(len(T))
         self.assertEqual(ss.analyse(x, T)["verdict"], "broadband")
 
+    def test_names_that_could_be_chance_make_the_verdict_unresolved(self):
+        # the brake's lines after 50 periods (resolution 388 Hz): every line named, 16 573 Hz as
+        # "2 f1" of 7 741 Hz; the C++ twin is SteadyState.NamesThatCouldBeChanceMakeTheVerdictUnresolved
+        f = np.array([16572.68, 33129.27, 49621.27, 7741.43, 66340.89, 40864.54, 57943.24, 24869.60])
+        amp = np.array([3.53e-5, 4.65e-6, 4.45e-6, 3.04e-6, 2.79e-6, 1.43e-6, 1.20e-6, 1.11e-6])
+        p = float(np.sum(amp ** 2 / 2))
+        self.assertEqual(ss.classify(f, amp, p, p, 388.0)[0], "unresolved")
+        self.assertEqual(ss.classify(f, amp, p, p, 1.0)[0], "broadband")
+        h, ha = np.array([100.0, 200.0, 300.0]), np.array([1.0, 0.5, 0.2])
+        self.assertEqual(ss.classify(h, ha, 0.645, 0.645, 1.0)[0], "periodic")
+        self.assertEqual(ss.classify(h, ha, 0.645, 0.645, 5.0)[0], "unresolved")
+
     def test_rms_interval_contains_the_exact_value(self):
         # sine of amplitude A plus AR(1) noise e_k = phi e_{k-1} + s w_k: RMS^2 = A^2/2 + s^2/(1 - phi^2)
         A, phi, s = 1.0, 0.9, 0.3

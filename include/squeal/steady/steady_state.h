@@ -20,7 +20,9 @@
 //             Gauss-Newton on the least-squares fit of sum_k a_k cos 2 pi f_k t + b_k sin 2 pi f_k t;
 //   verdict   periodic (every line a harmonic k f1 of the strongest), quasi-periodic (every line
 //             m f1 + n f2, |m|, |n| <= 4, with a second base f2), broadband (lines carry less than
-//             half the power, or some are unexplained).
+//             half the power, or some are unexplained); unresolved, in place of the first two,
+//             when the names could be chance: within the tolerance (3 resolutions of the record)
+//             more than a quarter of the band would be named (the brake after 50 periods: +-1164 Hz).
 // The same steps as scripts/steady_state.py, which reads the records after the run; here the
 // transient runs on in chunks of -steady_chunk_periods until the levels converge or
 // -steady_max_periods is reached. FFTs of any length: radix 2, Bluestein's chirp-z otherwise.
