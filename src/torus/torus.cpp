@@ -104,6 +104,11 @@ struct TorusSolver::Ctx {
   MPI_Comm              comm;
   bool                  monitor = false;
   std::chrono::steady_clock::time_point t0;
+  // The preconditioner: the scaled monodromy and, per Fourier index, the LU of mono - e^{i 2 pi k rho}.
+  Eigen::MatrixXd                                   mono_s;
+  std::vector<Eigen::PartialPivLU<Eigen::MatrixXcd>> lu;
+  PetscReal                                         lu_rho = -1;
+  SNES                                              snes = nullptr;
 };
 
 struct TorusCallbacks {
@@ -150,6 +155,48 @@ struct TorusCallbacks {
     PetscCall(VecGetArray(f, &a));
     if (rank == 0) std::copy(F.data(), F.data() + F.size(), a);
     PetscCall(VecRestoreArray(f, &a));
+    PetscFunctionReturn(0);
+  }
+
+  // P^-1 on the circle's part (the DFT over the points, one solve per Fourier index), identity on (T, rho).
+  static PetscErrorCode ApplyPC(PC pc, Vec r, Vec y)
+  {
+    TorusSolver::Ctx *cp;
+    PetscFunctionBeginUser;
+    PetscCall(PCShellGetContext(pc, &cp));
+    auto          &c = *cp;
+    const PetscInt M = c.M, n = c.n, K = (M - 1) / 2;
+    Vec            x;
+    Eigen::VectorXd X, R;
+    PetscCall(SNESGetSolution(c.snes, &x));
+    PetscCall(Gather(c, x, X));
+    const PetscReal rho = X[M * n + 1];
+    if (rho != c.lu_rho) {
+      c.lu.clear();
+      for (PetscInt k = -K; k <= K; ++k) {
+        Eigen::MatrixXcd A = c.mono_s.cast<std::complex<double>>();
+        A.diagonal().array() -= std::polar(1.0, 2 * PETSC_PI * k * rho);
+        c.lu.emplace_back(A);
+      }
+      c.lu_rho = rho;
+    }
+    PetscCall(Gather(c, r, R));
+    const Eigen::Map<const Eigen::MatrixXd> Rm(R.data(), n, M);
+    Eigen::VectorXd                         Y = R;
+    Eigen::Map<Eigen::MatrixXd>             Ym(Y.data(), n, M);
+    Ym.setZero();
+    for (PetscInt k = -K; k <= K; ++k) {
+      Eigen::VectorXcd rk = Eigen::VectorXcd::Zero(n);
+      for (PetscInt j = 0; j < M; ++j) rk += Rm.col(j).cast<std::complex<double>>() * std::polar(1.0, -2 * PETSC_PI * k * j / M);
+      const Eigen::VectorXcd yk = c.lu[k + K].solve(rk / (double)M);
+      for (PetscInt j = 0; j < M; ++j) Ym.col(j) += (yk * std::polar(1.0, 2 * PETSC_PI * k * j / M)).real();
+    }
+    PetscMPIInt rank;
+    PetscCallMPI(MPI_Comm_rank(c.comm, &rank));
+    PetscScalar *a;
+    PetscCall(VecGetArray(y, &a));
+    if (rank == 0) std::copy(Y.data(), Y.data() + Y.size(), a);
+    PetscCall(VecRestoreArray(y, &a));
     PetscFunctionReturn(0);
   }
 
@@ -207,6 +254,8 @@ PetscErrorCode TorusSolver::SetFromOptions()
   PetscCall(PetscOptionsReal("-rtol", "Converged when ||F|| / ||u|| (scaled states) is below this", "TorusSolver", rtol, &rtol, nullptr));
   checks.Add("torus_", "rtol", &rtol, Range::Positive());
   PetscCall(PetscOptionsBool("-monitor", "One line per Newton iteration", "TorusSolver", monitor, &monitor, nullptr));
+  PetscCall(PetscOptionsBool("-linear_pc", "Precondition GMRES with the steady sliding linearisation's monodromy, block-circulant over the circle (dense back end)",
+                             "TorusSolver", linear_pc, &linear_pc, nullptr));
   PetscCall(PetscOptionsName("-view", "The torus after the solve ([viewer])", "TorusSolver", nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
@@ -220,13 +269,10 @@ PetscErrorCode TorusSolver::SetFromOptions()
     PetscCall(SNESCreate(comm_, &snes_));
     PetscCall(SNESSetOptionsPrefix(snes_, "torus_"));
     KSP ksp;
-    PC  pc;
     PetscCall(SNESGetKSP(snes_, &ksp));
     PetscCall(KSPSetType(ksp, KSPGMRES));
     PetscCall(KSPGMRESSetRestart(ksp, 100));
     PetscCall(KSPSetTolerances(ksp, 1e-4, PETSC_DEFAULT, PETSC_DEFAULT, 200));
-    PetscCall(KSPGetPC(ksp, &pc));
-    PetscCall(PCSetType(pc, PCNONE));
     PetscCall(SNESSetTolerances(snes_, 0, 0, 0, 15, 10000));
     PetscCall(SNESKSPSetUseEW(snes_, PETSC_TRUE));
     PetscCall(SNESSetFromOptions(snes_));
@@ -235,7 +281,7 @@ PetscErrorCode TorusSolver::SetFromOptions()
 }
 
 PetscErrorCode TorusSolver::Solve(const FlowFn &flow, const Eigen::VectorXd &s, const Eigen::MatrixXd &circle, PetscReal T0, PetscReal rho0,
-                                  TorusResult &res)
+                                  TorusResult &res, const Eigen::MatrixXd *mono)
 {
   Ctx         c;
   PetscMPIInt rank;
@@ -289,6 +335,26 @@ PetscErrorCode TorusSolver::Solve(const FlowFn &flow, const Eigen::VectorXd &s, 
   PetscCall(MatSetFromOptions(J));
   PetscCall(SNESSetJacobian(snes_, J, J, MatMFFDComputeJacobian, nullptr));
   PetscCall(SNESSetConvergenceTest(snes_, TorusCallbacks::Converged, &c, nullptr));
+  {
+    KSP ksp;
+    PC  pc;
+    PetscCall(SNESGetKSP(snes_, &ksp));
+    PetscCall(KSPGetPC(ksp, &pc));
+    c.snes = snes_;
+    if (mono) {
+      PetscCheck(mono->rows() == n && mono->cols() == n, comm_, kErrInput, "torus: the preconditioner's monodromy is %dx%d, expected %" PetscInt_FMT,
+                 (int)mono->rows(), (int)mono->cols(), n);
+      c.mono_s = s.cwiseInverse().asDiagonal() * (*mono) * s.asDiagonal();
+      PetscCall(PCSetType(pc, PCSHELL));
+      PetscCall(PCShellSetContext(pc, &c));
+      PetscCall(PCShellSetApply(pc, TorusCallbacks::ApplyPC));
+      PetscCall(PCShellSetName(pc, "torus: block-circulant linear monodromy"));
+      PetscCall(KSPSetPCSide(ksp, PC_RIGHT));
+    } else {
+      PetscCall(PCSetType(pc, PCNONE));
+    }
+    res.preconditioned = mono != nullptr;
+  }
   // A flow error (NaN, a contact solve that fails) inside Newton is a failed solve, reported, not an abort.
   PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
   PetscErrorCode ierr = SNESSolve(snes_, nullptr, x);
@@ -416,7 +482,30 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
   Eigen::VectorXd s(2 * N);
   s.head(N).setConstant(a / w);
   s.tail(N).setConstant(a);
-  PetscCall(Solve(flow, s, circle, T0, rho, res));
+  Eigen::MatrixXd mono;
+  if (linear_pc && ti.Dense()) {
+    // Weakly damped structural modes put many multipliers near the unit circle (as for shooting's
+    // -shoot_linear_pc): those of the steady sliding linearisation, one step tangent at the
+    // equilibrium reactions (every point closed and sliding) raised to the steps per period.
+    const PetscReal h = T0 / nsteps;
+    if (h != h_set) {
+      PetscCall(ti.SetUp(model, h));
+      h_set = h;
+    }
+    Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N, 2 * N), ddU = Eigen::MatrixXd::Zero(N, 2 * N);
+    dU.leftCols(N).setIdentity();
+    ddU.rightCols(N).setIdentity();
+    PetscCall(ti.StepTangent(r0, Eigen::VectorXd::Zero(3 * nc), dU, ddU));
+    Eigen::MatrixXd S(2 * N, 2 * N), P = Eigen::MatrixXd::Identity(2 * N, 2 * N), tmp(2 * N, 2 * N);
+    S.topRows(N)    = dU;
+    S.bottomRows(N) = ddU;
+    for (PetscInt e = nsteps; e > 0; e >>= 1) {
+      if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
+      if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
+    }
+    mono.swap(P);
+  }
+  PetscCall(Solve(flow, s, circle, T0, rho, res, mono.size() ? &mono : nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -432,6 +521,7 @@ PetscErrorCode TorusSolver::View(const TorusResult &res, PetscViewer viewer) con
   const PetscReal fm = std::min(res.rho, 1 - res.rho) / res.T;
   PetscCall(PetscViewerASCIIPrintf(viewer, "  T = %.9e s: f1 = %.4f Hz, rotation number rho = %.8f: modulation f1 min(rho, 1 - rho) = %.4f Hz, f2 = f1 + %.4f = %.4f Hz\n",
                                    (double)res.T, (double)res.f1, (double)res.rho, (double)fm, (double)fm, (double)(res.f1 + fm)));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  GMRES %s\n", res.preconditioned ? "preconditioned by the block-circulant linear monodromy" : "without preconditioner"));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  start: f1 = %.4f Hz, rho = %.8f\n", 1 / (double)res.T0, (double)res.rho0));
   PetscFunctionReturn(0);
 }

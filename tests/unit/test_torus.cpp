@@ -44,7 +44,7 @@ struct TwoOscillators {
 };
 
 // The torus from a stroboscopic sequence of a transient, at a start period 0.3 % off.
-void SolveAndCheck(double f1, double f2, double rho_exact)
+void SolveAndCheck(double f1, double f2, double rho_exact, bool precondition = false, PetscInt *krylov = nullptr)
 {
   const TwoOscillators sys(f1, f2);
   TorusSolver          solver(PETSC_COMM_WORLD);
@@ -72,7 +72,16 @@ void SolveAndCheck(double f1, double f2, double rho_exact)
   EXPECT_NEAR(std::min(rho0, 1 - rho0), std::min(rho_exact, 1 - rho_exact), 0.01);
   const Eigen::MatrixXd circle = TorusSolver::FitCircle(Y, rho0, solver.points);
   TorusResult           res;
-  ASSERT_EQ(solver.Solve(flow, Eigen::VectorXd::Ones(6), circle, T0, rho0, res), 0);
+  // The preconditioner's monodromy: central differences of the flow at one point of the start circle only.
+  Eigen::MatrixXd mono(6, 6);
+  for (int i = 0; i < 6; ++i) {
+    Eigen::VectorXd zp = circle.col(0), zm = circle.col(0), fp, fm;
+    zp[i] += 1e-6, zm[i] -= 1e-6;
+    sys.Flow(zp, T0, fp), sys.Flow(zm, T0, fm);
+    mono.col(i) = (fp - fm) / 2e-6;
+  }
+  ASSERT_EQ(solver.Solve(flow, Eigen::VectorXd::Ones(6), circle, T0, rho0, res, precondition ? &mono : nullptr), 0);
+  if (krylov) *krylov = res.krylov_iterations;
   EXPECT_TRUE(res.converged) << res.reason;
   EXPECT_NEAR(res.T * f1, 1.0, 1e-9);
   const double rho = res.rho - std::floor(res.rho);
@@ -126,4 +135,13 @@ TEST(Torus, InvariantCircleOfTwoOscillatorsWithSlowModulation)
 TEST(Torus, InvariantCircleOfTwoOscillatorsGoldenRotation)
 {
   SolveAndCheck(100.0, 138.1966011250105, 0.381966011250105);
+}
+
+// The block-circulant preconditioner from a monodromy taken at a single point: the same torus.
+TEST(Torus, PreconditionedByTheMonodromyAtOnePoint)
+{
+  PetscInt plain = 0, pre = 0;
+  SolveAndCheck(100.0, 102.54, 0.0254, false, &plain);
+  SolveAndCheck(100.0, 102.54, 0.0254, true, &pre);
+  EXPECT_LT(pre, plain);
 }

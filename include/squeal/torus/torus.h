@@ -45,6 +45,7 @@ struct TorusResult {
   PetscInt               M = 0, n = 0;                  // points on the circle, state size
   PetscInt               iterations = 0, flows = 0;     // Newton iterations, period flows in all
   PetscInt               krylov_iterations = 0;
+  bool                   preconditioned = false;
   PetscReal              T = 0, rho = 0;                // stroboscopic period and rotation number
   PetscReal              f1 = 0, f2 = 0;                // 1/T and (1 + rho)/T (Hz)
   PetscReal              T0 = 0, rho0 = 0;              // the start's
@@ -70,8 +71,12 @@ public:
 
   // Newton on (T.1)-(T.2) from the circle (n x M, column j = u_j), T0 and rho0; s: the scale of
   // each state component. Not converging is reported in res (and is no error).
+  // mono (optional, n x n, unscaled): an approximate monodromy for the preconditioner. With it GMRES
+  // is preconditioned (right) by the block-circulant P = I (x) mono - R(rho) (x) I, which the DFT over
+  // the M points splits into M solves with mono - e^{i 2 pi k rho} (k = -(M-1)/2..(M-1)/2): the
+  // weakly damped modes, whose multipliers lie on the unit circle, are then no longer GMRES's to find.
   PetscErrorCode Solve(const FlowFn &flow, const Eigen::VectorXd &s, const Eigen::MatrixXd &circle, PetscReal T0, PetscReal rho0,
-                       TorusResult &res);
+                       TorusResult &res, const Eigen::MatrixXd *mono = nullptr);
   // In squeal: start-up transient, stroboscopic sequence, fit, Solve.
   PetscErrorCode Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab, ThetaIntegrator &ti,
                      TransientAnalysis &transient, TorusResult &res);
@@ -92,6 +97,9 @@ public:
   PetscInt  points = 15, startup_periods = 300, snapshots = PETSC_DECIDE, steps = 200;
   PetscReal f1 = 0, f2 = 0, rtol = 1e-6;
   PetscBool monitor = PETSC_FALSE;
+  // -torus_linear_pc: in Run, precondition with the monodromy of the steady sliding linearisation
+  // (the step tangent at the equilibrium reactions, raised to -torus_steps; dense back end).
+  PetscBool linear_pc = PETSC_TRUE;
 
 private:
   struct Ctx;
