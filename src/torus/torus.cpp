@@ -275,6 +275,8 @@ PetscErrorCode TorusSolver::SetFromOptions()
     PetscCall(KSPSetTolerances(ksp, 1e-4, PETSC_DEFAULT, PETSC_DEFAULT, 200));
     PetscCall(SNESSetTolerances(snes_, 0, 0, 0, 15, 10000));
     PetscCall(SNESKSPSetUseEW(snes_, PETSC_TRUE));
+    // GMRES stopped at its iteration limit still gives a descent direction more often than not.
+    PetscCall(SNESSetMaxLinearSolveFailures(snes_, 10));
     PetscCall(SNESSetFromOptions(snes_));
   }
   PetscFunctionReturn(0);
@@ -551,6 +553,8 @@ PetscErrorCode TorusSolver::Write(const TorusResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute(g, "residual", res.residual));
   PetscCall(out.WriteAttribute(g, "residual0", res.residual0));
   PetscCall(out.WriteAttribute(g, "iterations", res.iterations));
+  PetscCall(out.WriteAttribute(g, "points", res.M));
+  PetscCall(out.WriteAttribute(g, "krylov_iterations", res.krylov_iterations));
   PetscCall(out.WriteAttribute(g, "flows", res.flows));
   PetscCall(out.WriteAttribute(g, "signal_dof", res.signal_dof));
   PetscFunctionReturn(0);
