@@ -477,7 +477,12 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
   if (rank == 0)
     for (PetscInt k = 0; k < K; ++k) res.snapshot_signal.push_back(Y(res.signal_dof, k));
   if (rho == 0) rho = EstimateRotation(Y);
-  const Eigen::MatrixXd circle = FitCircle(Y, rho, points);
+  // The fit on the last two turns only (at least 4 M samples): T0 off by dT moves the samples along
+  // the flow by dT per sample, and a longer sequence fits a wider band of the torus. On the small
+  // pad from the measured period (0.02 % off) the fit on 200 samples started Newton at 1.0e-2, where
+  // Newton crept (2e-4 after 8 iterations); see docs/torus.md.
+  const PetscInt  Kfit   = std::min<PetscInt>(K, std::max<PetscInt>(4 * points, (PetscInt)std::ceil(2 / std::max(std::min(rho, 1 - rho), 1e-3))));
+  const Eigen::MatrixXd circle = FitCircle(Y.rightCols(Kfit), rho, points);
   // Displacements weighted by the base angular frequency, so that they count as velocities; both by the motion's size.
   const PetscReal w = 2 * PETSC_PI / T0, a = std::sqrt(Y.bottomRows(N).squaredNorm() / (N * K));
   PetscCheck(a > 0, comm_, PETSC_ERR_NOT_CONVERGED, "torus: no motion after the start-up (velocities all zero)");
