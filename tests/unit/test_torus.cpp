@@ -86,7 +86,10 @@ void SolveAndCheck(double f1, double f2, double rho_exact, bool precondition = f
   EXPECT_NEAR(res.T * f1, 1.0, 1e-9);
   const double rho = res.rho - std::floor(res.rho);
   EXPECT_NEAR(std::min(rho, 1 - rho), std::min(rho_exact, 1 - rho_exact), 1e-9);
-  // Every point on the torus r1 = r2 = 1, the damped coordinates zero.
+  // Every point on the torus r1 = r2 = 1, the damped coordinates zero (the circle is kept on rank 0).
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank != 0) return;
   ASSERT_EQ((PetscInt)res.circle.size(), 6 * res.M);
   for (PetscInt j = 0; j < res.M; ++j) {
     const Eigen::VectorXd v = sys.Ainv * Eigen::Map<const Eigen::VectorXd>(res.circle.data() + 6 * j, 6);
