@@ -345,6 +345,13 @@ PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, 
     PetscCall(Checkpoint(comm, out, tr.complete ? "the transient" : "the transient step in hand (the steps so far are written)"));
   }
   if (req.steady) PetscCall(Settle(p, {}, {}, "the mode", out, st));
+  if (req.torus) {
+    PetscCall(p.torus.Run(p.model, p.eq, p.stability, p.theta, p.transient, p.torus_result));
+    PetscCall(p.torus.View(p.torus_result, PETSC_VIEWER_STDOUT_(comm)));
+    PetscCall(p.torus.ViewFromOptions(p.torus_result));
+    PetscCall(p.torus.Write(p.torus_result, out));
+    PetscCall(Checkpoint(comm, out, "the torus"));
+  }
   PetscCall(out.SetStatus("complete"));
   PetscCall(out.Close());
   PetscCall(PetscPrintf(comm, "results written to %s\n", output));
@@ -377,7 +384,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscOptionsBegin(comm, nullptr, "squeal", "squeal");
   PetscCall(PetscOptionsString("-scene", "Scene file (YAML) filling the options database", "RunApp", "", output, sizeof(output), nullptr));
   PetscCall(PetscOptionsStringArray("-analyses", "Comma-separated analyses: stability, sweep, transient, energy, shooting, continuation, steady (the statistical steady state of a "
-                                              "transient), auto (shooting where the flow returns after the pre-periods, else steady)", "RunApp", names, &nnames, &set));
+                                              "transient), auto (shooting where the flow returns after the pre-periods, else steady), torus (the invariant torus of a quasi-periodic motion)", "RunApp", names, &nnames, &set));
   std::snprintf(output, sizeof(output), "%s", default_output.c_str());
   PetscCall(PetscOptionsString("-output", "Results file (HDF5); default: the scene's name with .h5", "RunApp", output, output,
                                sizeof(output), nullptr));

@@ -23,9 +23,10 @@ PetscErrorCode Request::Parse(MPI_Comm comm, char **names, PetscInt n, Request &
     else if (a == "continuation") req.continuation = req.shooting = req.energy = req.stability = true; // from the cycle
     else if (a == "steady") req.steady = req.stability = true; // a transient from a mode
     else if (a == "auto") req.automatic = req.energy = req.stability = true; // the estimate starts the pre-periods
+    else if (a == "torus") req.torus = req.stability = true; // a transient from a mode, then its stroboscopic map
     else {
       SETERRQ(comm, kErrInput,
-              "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation, steady, auto)",
+              "unknown analysis '%s' in -analyses (available: stability, sweep, transient, energy, shooting, continuation, steady, auto, torus)",
               a.c_str());
     }
   }
@@ -37,7 +38,7 @@ PetscErrorCode Request::Parse(MPI_Comm comm, char **names, PetscInt n, Request &
 
 Pipeline::Pipeline(MPI_Comm comm)
   : model(comm), eqs(comm), stab(comm), sweep(comm), theta(comm), transient(comm), energy(comm), shooting(comm), continuation(comm),
-    steady(comm), comm_(comm)
+    steady(comm), torus(comm), comm_(comm)
 {
 }
 
@@ -118,6 +119,7 @@ PetscErrorCode Pipeline::SetFromOptions(const Request &req)
   PetscCall(continuation.SetFromOptions());
   continuation.SetBranchStarter(SliceStarter());
   PetscCall(steady.SetFromOptions());
+  PetscCall(torus.SetFromOptions());
   PetscFunctionReturn(0);
 }
 

@@ -17,6 +17,7 @@
 #include "squeal/stability/stability.h"
 #include "squeal/stability/sweep.h"
 #include "squeal/steady/steady_state.h"
+#include "squeal/torus/torus.h"
 
 #include <string>
 
@@ -32,8 +33,9 @@ struct Request {
   // the energy estimate and the pre-periods, shooting where the flow returns, the statistical
   // steady state where it does not (Pipeline::ShootOrSettle).
   bool steady = false, automatic = false;
+  bool torus = false; // the invariant torus of the quasi-periodic motion after a transient from the mode
 
-  // From the names of -analyses (stability, sweep, transient, energy, shooting, continuation, steady, auto).
+  // From the names of -analyses (stability, sweep, transient, energy, shooting, continuation, steady, auto, torus).
   static PetscErrorCode Parse(MPI_Comm comm, char **names, PetscInt n, Request &req);
 };
 
@@ -99,11 +101,13 @@ public:
   Shooting           shooting;
   Continuation       continuation;
   SteadyState        steady;
+  TorusSolver        torus;
   SlidingEquilibrium eq;
   StabilityResult    stability;
   EnergyEstimate     estimate;
   ShootingResult     cycle;
   SteadyStateResult  settled;
+  TorusResult        torus_result;
 
 private:
   MPI_Comm comm_;
