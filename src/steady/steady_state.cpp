@@ -623,7 +623,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     if (k == 0) {
       res.T_ref = tr.T_ref;
       h         = tr.h;
-      PetscCheck(tr.keep_every == keep, comm_, kErrInput,
+      PetscCheck(stopped || tr.keep_every == keep, comm_, kErrInput,
                  "steady state: the transient raised -transient_keep_every from %" PetscInt_FMT " to %" PetscInt_FMT
                  " for its memory budget; the chunks need one record grid: lower -steady_chunk_periods or set -transient_keep_every %" PetscInt_FMT,
                  keep, tr.keep_every, tr.keep_every);
