@@ -1,5 +1,7 @@
 #include "squeal/steady/steady_state.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
 
@@ -419,6 +421,114 @@ Analysis Analyse(const std::vector<double> &x, double dt, long batches)
   return a;
 }
 
+bool ModalProjection::SetUp(const std::vector<std::vector<double>> &re, const std::vector<std::vector<double>> &im, size_t every,
+                            std::string *why)
+{
+  *this    = ModalProjection{};
+  every_   = std::max<size_t>(1, every);
+  N_       = re.empty() ? 0 : re[0].size();
+  size_t m = 0;
+  for (size_t j = 0; j < re.size(); ++j) m += im[j].empty() ? 1 : 2;
+  if (re.empty() || m > N_) {
+    if (why) *why = re.empty() ? "no mode to project on" : "more mode columns than DOFs";
+    N_ = 0;
+    return false;
+  }
+  Eigen::MatrixXd B(N_, m);
+  for (size_t j = 0, c = 0; j < re.size(); ++j) {
+    cols_.push_back({c});
+    B.col(c++) = Eigen::Map<const Eigen::VectorXd>(re[j].data(), (Eigen::Index)N_);
+    if (!im[j].empty()) {
+      cols_.back().push_back(c);
+      B.col(c++) = Eigen::Map<const Eigen::VectorXd>(im[j].data(), (Eigen::Index)N_);
+    }
+  }
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(B);
+  Q_ = qr.householderQ() * Eigen::MatrixXd::Identity((Eigen::Index)N_, (Eigen::Index)m);
+  R_ = qr.matrixQR().topRows((Eigen::Index)m).triangularView<Eigen::Upper>();
+  const Eigen::VectorXd d = R_.diagonal().cwiseAbs();
+  // The ratio of R's extreme diagonal entries bounds B's condition number from below; the
+  // singular values give it.
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(R_);
+  const Eigen::VectorXd             sv = svd.singularValues();
+  const double                      cond = sv(sv.size() - 1) > 0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
+  if (!(d.minCoeff() > 0) || !(cond < 1e10)) {
+    if (why) {
+      char b[160];
+      std::snprintf(b, sizeof b, "the unstable modes' shapes are (nearly) linearly dependent (condition number %.3g): no modal coordinates", cond);
+      *why = b;
+    }
+    N_ = 0, cols_.clear();
+    return false;
+  }
+  cond_ = cond;
+  return true;
+}
+
+void ModalProjection::Add(const double *u, size_t n, size_t first)
+{
+  if (!N_) return;
+  const Eigen::Index N = (Eigen::Index)N_;
+  for (size_t i = first; i < n; ++i) {
+    Eigen::Map<const Eigen::VectorXd> ui(u + i * N_, N);
+    if (e_.empty()) ref_ = ui, sum_ = Eigen::VectorXd::Zero(N);
+    if (e_.size() % every_ == 0) checkpoints_.push_back(sum_);
+    const Eigen::VectorXd y = ui - ref_;
+    z_.push_back(Q_.transpose() * y);
+    e_.push_back(y.squaredNorm());
+    sum_ += y;
+  }
+}
+
+ModalProjection::Result ModalProjection::Analyse(size_t cut) const
+{
+  Result       r;
+  const size_t n = e_.size();
+  if (!N_ || n < 2) return r;
+  r.cond = cond_;
+  // The window: from a checkpoint (its running sum known), the first at or after the cut.
+  size_t c = (cut + every_ - 1) / every_;
+  while (c > 0 && (c >= checkpoints_.size() || n - c * every_ < 2)) --c;
+  r.from    = c * every_;
+  r.records = n - r.from;
+  const double          m    = (double)r.records;
+  const Eigen::VectorXd ubar = (sum_ - checkpoints_[c]) / m;
+  double                ee   = 0;
+  Eigen::VectorXd       zbar = Eigen::VectorXd::Zero(Q_.cols());
+  for (size_t i = r.from; i < n; ++i) ee += e_[i], zbar += z_[i];
+  zbar /= m;
+  r.variance = std::max(0.0, ee / m - ubar.squaredNorm());
+  const size_t k = cols_.size(), ncol = (size_t)Q_.cols();
+  r.q            = Eigen::MatrixXd::Zero((Eigen::Index)r.records, (Eigen::Index)(2 * k));
+  Eigen::MatrixXd coef((Eigen::Index)ncol, (Eigen::Index)r.records);
+  double          fitted = 0;
+  for (size_t i = r.from; i < n; ++i) {
+    const Eigen::VectorXd dz = z_[i] - zbar;
+    fitted += dz.squaredNorm();
+    coef.col((Eigen::Index)(i - r.from)) = R_.triangularView<Eigen::Upper>().solve(dz);
+  }
+  r.explained = r.variance > 0 ? std::min(1.0, fitted / m / r.variance) : 0.0;
+  r.rms.assign(k, 0.0), r.share.assign(k, 0.0);
+  for (size_t j = 0; j < k; ++j) {
+    const std::vector<size_t> &cj = cols_[j];
+    // |B_j q_j|^2 = q_j^T (R_j^T R_j) q_j with R_j the columns of R for mode j (B = Q R, Q^T Q = I).
+    Eigen::MatrixXd Rj(R_.rows(), (Eigen::Index)cj.size());
+    for (size_t l = 0; l < cj.size(); ++l) Rj.col((Eigen::Index)l) = R_.col((Eigen::Index)cj[l]);
+    const Eigen::MatrixXd G = Rj.transpose() * Rj;
+    double                s2 = 0, p2 = 0;
+    for (Eigen::Index i = 0; i < (Eigen::Index)r.records; ++i) {
+      Eigen::VectorXd qj((Eigen::Index)cj.size());
+      for (size_t l = 0; l < cj.size(); ++l) qj((Eigen::Index)l) = coef((Eigen::Index)cj[l], i);
+      r.q(i, (Eigen::Index)(2 * j)) = qj(0);
+      if (cj.size() > 1) r.q(i, (Eigen::Index)(2 * j + 1)) = qj(1);
+      s2 += qj.squaredNorm(), p2 += qj.dot(G * qj);
+    }
+    r.rms[j]   = std::sqrt(s2 / m);
+    r.share[j] = r.variance > 0 ? p2 / m / r.variance : 0.0;
+  }
+  return r;
+}
+
 } // namespace steady
 
 SteadyState::~SteadyState()
@@ -475,6 +585,7 @@ PetscErrorCode SteadyState::Analyse(SteadyStateResult &res) const
       const std::vector<double> r(res.rn.begin() + (long)res.signal.cut, res.rn.end());
       res.normal = steady::BatchLevels(r, batches);
     }
+    if (res.projection.Modes()) res.modal = res.projection.Analyse(res.signal.cut);
     const steady::Levels &L = res.signal.levels, &R = res.normal;
     conv = L.rms > 0 && L.rel_halfwidth < rtol && L.drift < rtol && (res.rn.empty() || (R.rel_halfwidth < rtol && R.drift < rtol));
   }
@@ -503,6 +614,23 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     ~Restore() { tr.u0 = u0, tr.du0 = du0, tr.periods = periods, tr.t_final = t_final, tr.h = h; }
   } restore{transient, transient.u0, transient.du0, transient.periods, transient.t_final, transient.h};
   if (!u0.empty()) transient.u0 = u0, transient.du0 = du0;
+  // The unstable modes' shapes on rank 0, for the modal projection of the records.
+  std::vector<std::vector<double>> modes_re, modes_im;
+  for (PetscInt m : stab.unstable) {
+    const Mode &md = stab.modes[(size_t)m];
+    if (!md.phi_re) {
+      res.modal_note = "the stability analysis kept no mode shapes";
+      modes_re.clear(), modes_im.clear(), res.mode_index.clear(), res.mode_frequency.clear(), res.mode_growth.clear();
+      break;
+    }
+    std::vector<PetscReal> re, im;
+    PetscCall(GatherVector(md.phi_re, false, re));
+    if (md.Oscillatory() && md.phi_im) PetscCall(GatherVector(md.phi_im, false, im));
+    modes_re.push_back(re), modes_im.push_back(im);
+    res.mode_index.push_back(m), res.mode_frequency.push_back(md.Frequency()), res.mode_growth.push_back(md.sigma);
+  }
+  if (stab.unstable.empty()) res.modal_note = "no unstable mode in the band";
+  if (rank != 0) modes_re.clear(), modes_im.clear();
   // Chunks of a whole number of records: the records of successive chunks lie on one grid.
   const PetscInt keep = transient.keep_every;
   PetscInt       chunk_steps = 0, max_chunks = 0;
@@ -515,11 +643,23 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       transient.h = h, transient.t_final = chunk_steps * h;
     }
     PetscCall(transient.Run(model, eq, stab, ti, tr));
-    if (!tr.complete) break; // stopped by a signal: the chunks before stay analysed, complete stays false
+    // Stopped by a signal (the transient leaves on nothing else without an error): the records so
+    // far, this chunk's too, are analysed, and complete stays false.
+    const bool         stopped = !tr.complete;
+    unsigned long long have    = rank == 0 ? (unsigned long long)tr.t.size() : 0;
+    PetscCallMPI(MPI_Bcast(&have, 1, MPI_UNSIGNED_LONG_LONG, 0, comm_));
+    if (stopped) {
+      char b[256];
+      std::snprintf(b, sizeof b, "interrupted by %s during chunk %" PetscInt_FMT " after %" PetscInt_FMT " of its steps%s",
+                    InterruptSignal() ? InterruptSignalName() : "a signal", k + 1, tr.steps,
+                    have < 2 || (k == 0 && have < 4) ? ", before enough records for the statistics" : "");
+      res.interrupted = b;
+      if (have < 2 || (k == 0 && have < 4)) break;
+    }
     if (k == 0) {
       res.T_ref = tr.T_ref;
       h         = tr.h;
-      PetscCheck(tr.keep_every == keep, comm_, kErrInput,
+      PetscCheck(stopped || tr.keep_every == keep, comm_, kErrInput,
                  "steady state: the transient raised -transient_keep_every from %" PetscInt_FMT " to %" PetscInt_FMT
                  " for its memory budget; the chunks need one record grid: lower -steady_chunk_periods or set -transient_keep_every %" PetscInt_FMT,
                  keep, tr.keep_every, tr.keep_every);
@@ -528,12 +668,19 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       max_chunks  = 1 + (PetscInt)std::ceil((max_periods - chunk_periods) * tr.T_ref / (chunk_steps * h) - 1e-9);
       if (rank == 0) res.dof = dof >= 0 ? dof : std::max<PetscInt>(0, tr.summary.signal_dof);
       PetscCallMPI(MPI_Bcast(&res.dof, 1, MPIU_INT, 0, comm_));
+      // Checkpoints of the modal sums about once per period of the starting mode, at most ~512 in
+      // the budget: the modal window starts within a period of the start-up cut.
+      if (rank == 0 && !modes_re.empty()) {
+        const size_t per_period = std::max<size_t>(1, (size_t)std::llround(tr.T_ref / (h * keep)));
+        const size_t every      = per_period * std::max<size_t>(1, (size_t)std::ceil(max_periods / 512.0));
+        (void)res.projection.SetUp(modes_re, modes_im, every, &res.modal_note); // false: the note says why
+      }
     }
     // Rank 0's records, appended (a later chunk's first record is the last one's end state).
     std::vector<PetscReal> endU(N), endV(N);
     if (rank == 0) {
       const size_t nr = tr.t.size();
-      PetscCheck(nr >= 2 && (k == 0 || (tr.steps % keep) == 0), PETSC_COMM_SELF, PETSC_ERR_PLIB, "steady state: chunk %" PetscInt_FMT " off the record grid",
+      PetscCheck(nr >= 2 && (k == 0 || stopped || (tr.steps % keep) == 0), PETSC_COMM_SELF, PETSC_ERR_PLIB, "steady state: chunk %" PetscInt_FMT " off the record grid",
                  k);
       for (size_t i = k == 0 ? 0 : 1; i < nr; ++i) {
         res.t.push_back(elapsed + tr.t[i]);
@@ -548,11 +695,15 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       std::copy(tr.V.end() - N, tr.V.end(), endV.begin());
     }
     // The first chunk may end off the grid (its step count from -steady_chunk_periods): its tail
-    // record is dropped from the statistics, and the next chunks start from it all the same.
-    if (rank == 0 && k == 0 && tr.steps % keep) {
+    // record is dropped from the statistics, and the next chunks start from it all the same. (A
+    // stopped chunk's records are all on the grid: the transient keeps the end state only at its
+    // last step.)
+    const bool off_grid = !stopped && k == 0 && tr.steps % keep;
+    if (rank == 0 && off_grid) {
       res.t.pop_back(), res.x.pop_back();
       if (nc > 0) res.rn.pop_back();
     }
+    if (rank == 0) res.projection.Add(tr.U.data(), tr.t.size() - (off_grid ? 1 : 0), k == 0 ? 0 : 1);
     elapsed += tr.steps * h;
     PetscCallMPI(MPI_Bcast(endU.data(), (int)N, MPIU_REAL, 0, comm_));
     PetscCallMPI(MPI_Bcast(endV.data(), (int)N, MPIU_REAL, 0, comm_));
@@ -560,6 +711,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     res.chunks  = k + 1;
     res.periods = elapsed / res.T_ref;
     PetscCall(Analyse(res));
+    if (stopped) break;
     const steady::Levels &L = res.signal.levels;
     char nr[64] = "";
     if (!res.rn.empty())
@@ -613,6 +765,23 @@ PetscErrorCode SteadyState::View(const SteadyStateResult &res, PetscViewer viewe
   for (size_t i : order)
     PetscCall(PetscViewerASCIIPrintf(viewer, "line %14.6f Hz  amplitude %.4e  %s\n", a.lines[i], a.amplitudes[i], a.cls.names[i].c_str()));
   PetscCall(PetscViewerASCIIPrintf(viewer, "verdict: %s (%s)\n", a.cls.verdict.c_str(), a.cls.evidence.c_str()));
+  const steady::ModalProjection::Result &q = res.modal;
+  if (!q.rms.empty() && q.rms.size() == res.mode_index.size()) {
+    const double tq = res.t.size() > q.from ? res.t[q.from] : 0.0;
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "unstable modes (least-squares fit of the states on Re phi, Im phi from t = %.6g s, %zu records; shapes' "
+                                     "condition number %.3g):\n",
+                                     tq, q.records, q.cond));
+    PetscCall(PetscViewerASCIIPushTab(viewer));
+    for (size_t j = 0; j < q.rms.size(); ++j)
+      PetscCall(PetscViewerASCIIPrintf(viewer, "mode %" PetscInt_FMT " (%.2f Hz, growth rate %.4g 1/s): modal RMS %.4e, share of the motion %.1f %%\n",
+                                       res.mode_index[j], (double)res.mode_frequency[j], (double)res.mode_growth[j], q.rms[j], 100 * q.share[j]));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "together they explain %.1f %% of the motion's variance; residual %.1f %%\n", 100 * q.explained,
+                                     100 * (1 - q.explained)));
+    PetscCall(PetscViewerASCIIPopTab(viewer));
+  } else if (!res.modal_note.empty())
+    PetscCall(PetscViewerASCIIPrintf(viewer, "unstable modes: no projection (%s)\n", res.modal_note.c_str()));
+  if (!res.interrupted.empty()) PetscCall(PetscViewerASCIIPrintf(viewer, "%s\n", res.interrupted.c_str()));
   PetscCall(PetscViewerASCIIPopTab(viewer));
   PetscFunctionReturn(0);
 }
@@ -670,6 +839,41 @@ PetscErrorCode SteadyState::Write(const SteadyStateResult &res, io::H5Writer &ou
     PetscCall(out.WriteAttribute(g, "normal_rms_hi", (PetscReal)res.normal.rms_hi));
     PetscCall(out.WriteAttribute(g, "normal_peak", (PetscReal)res.normal.peak));
   }
+  // The modal projection: per unstable mode (the script's mode_rms, and more).
+  unsigned long long nm[2] = {res.modal.rms.size(), (unsigned long long)res.modal.q.rows()};
+  PetscCallMPI(MPI_Bcast(nm, 2, MPI_UNSIGNED_LONG_LONG, 0, comm_));
+  if (nm[0]) {
+    std::vector<PetscReal> idx(res.mode_index.begin(), res.mode_index.end());
+    PetscCall(out.WriteArray("/steady_state/mode_index", {nm[0]}, idx.data()));
+    PetscCall(out.WriteArray("/steady_state/mode_frequency", {nm[0]}, res.mode_frequency.data()));
+    PetscCall(out.WriteArray("/steady_state/mode_growth_rate", {nm[0]}, res.mode_growth.data()));
+    PetscCall(out.WriteArray("/steady_state/mode_rms", {nm[0]}, res.modal.rms.data()));
+    PetscCall(out.WriteArray("/steady_state/mode_share", {nm[0]}, res.modal.share.data()));
+    // Row-major records x 2k (a_j, b_j): Eigen's default is column-major.
+    std::vector<PetscReal> qrow;
+    if (rank == 0) {
+      const Eigen::MatrixXd &Q = res.modal.q;
+      qrow.resize((size_t)Q.size());
+      for (Eigen::Index i = 0; i < Q.rows(); ++i)
+        for (Eigen::Index c = 0; c < Q.cols(); ++c) qrow[(size_t)(i * Q.cols() + c)] = Q(i, c);
+    }
+    PetscCall(out.WriteArray("/steady_state/modal_coordinates", {nm[1], 2 * nm[0]}, qrow.data()));
+    PetscCall(out.WriteAttribute(g, "modes_explained", (PetscReal)res.modal.explained));
+    PetscCall(out.WriteAttribute(g, "modes_residual", (PetscReal)(1 - res.modal.explained)));
+    PetscCall(out.WriteAttribute(g, "modes_variance", (PetscReal)res.modal.variance));
+    PetscCall(out.WriteAttribute(g, "modes_condition", (PetscReal)res.modal.cond));
+    PetscCall(out.WriteAttribute(g, "modes_from", (PetscInt)res.modal.from));
+    PetscCall(out.WriteAttribute(g, "modes_t_from", (PetscReal)(res.t.size() > res.modal.from ? res.t[res.modal.from] : 0.0)));
+    PetscCall(out.WriteAttribute(g, "modes_method",
+                                 "least-squares fit of the state records (window mean removed) on Re phi_j, Im phi_j of /stability/modes: "
+                                 "u - mean ~ sum_j Re(phi_j q_j), q_j = a_j - i b_j; mode_rms = sqrt(mean |q_j|^2); mode_share = mean "
+                                 "|Re(phi_j q_j)|^2 / mean |u - mean|^2; the window from the first checkpoint at or after the start-up cut"));
+  } else {
+    std::string note = rank == 0 ? res.modal_note : std::string();
+    if (rank == 0 && note.empty()) note = "no records to project";
+    PetscCall(out.WriteAttribute(g, "modes_note", note.c_str()));
+  }
+  if (!res.interrupted.empty()) PetscCall(out.WriteAttribute(g, "interrupted", res.interrupted.c_str()));
   PetscCall(out.WriteAttribute(g, "method",
                                "squeal SteadyState (C++): MSER start-up cut on the power per period; batch-means 95 % interval; Welch PSD "
                                "(Hann, 50 % overlap); lines refined by least-squares sinusoids; transient run on in chunks until converged"));

@@ -6,6 +6,7 @@
       in 1..127, stderr names the signal, F holds the stability table (unstable period T within
       0.5 %), a partial /transient (complete = 0, >= 2 records, time increasing at a constant
       step), root status "interrupted ...", no temporary file left.
+  check_results_io.py steady_interrupt --output F --after REGEX [--signal INT|TERM] -- cmd...
   check_results_io.py sweep_interrupt --output F --after REGEX [--signal INT|TERM] -- cmd...
       The same signal during a sweep (issue 20, item 1): F holds /sweep with the points computed
       (/sweep/failed 0, eigenvalues finite) and the rest marked 2 (not computed), /sweep
@@ -103,6 +104,27 @@ def interrupt(args, cmd):
             ok(np.all(np.isfinite(U)), "U finite")
 
 
+def steady_interrupt(args, cmd):
+    """SIGINT during the statistical steady state's first chunk: /steady_state holds the statistics
+    of the records so far (not empty) and says it was interrupted, and where."""
+    out = args["--output"]
+    name = signal_after(cmd, out, args["--after"], args.get("--signal", "INT"))
+    no_temporaries(out)
+    if not ok(os.path.exists(out), f"{out} exists"):
+        return
+    with Results(out) as r:
+        ok(r.status.startswith("interrupted (" + name), f"root status '{r.status}'")
+        s = r.steady_state
+        if not ok(s is not None, "has /steady_state"):
+            return
+        note = str(s.attrs.get("interrupted", ""))
+        ok(note.startswith("interrupted by " + name + " during chunk 1 "), f"/steady_state interrupted = '{note}'")
+        t = np.asarray(s["t"])
+        ok(t.size >= 100 and float(s.attrs["rms"]) > 0, f"{t.size} records analysed, RMS {float(s.attrs['rms']):.3e}")
+        ok(float(s.attrs["T_ref"]) > 0 and float(s.attrs["periods"]) > 0, "T_ref and periods set")
+        ok("mode_rms" in s and np.all(np.asarray(s["mode_rms"]) > 0), "the unstable mode's RMS")
+
+
 def sweep_interrupt(args, cmd):
     out = args["--output"]
     name = signal_after(cmd, out, args["--after"], args.get("--signal", "INT"))
@@ -179,6 +201,8 @@ def main():
     args = dict(zip(opts[::2], opts[1::2]))
     if mode == "interrupt":
         interrupt(args, rest)
+    elif mode == "steady_interrupt":
+        steady_interrupt(args, rest)
     elif mode == "sweep_interrupt":
         sweep_interrupt(args, rest)
     elif mode == "concurrent":

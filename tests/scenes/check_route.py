@@ -27,6 +27,7 @@ def main():
     ap.add_argument("--output", required=True)
     ap.add_argument("--route", choices=["shooting", "steady_state"], required=True)
     ap.add_argument("--verdict", action="append", help="allowed verdicts (steady_state); default any")
+    ap.add_argument("--modal", action="store_true", help="check the unstable modes' projection (steady_state)")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
@@ -74,8 +75,59 @@ def main():
             fail(f"verdict {at['verdict']} ({at['evidence']}), expected one of {a.verdict}")
         if len(s["lines"]) == 0:
             fail("no spectral line")
+        modal = check_modal(res, s) if a.modal else ""
         print(f"check_route: steady_state, return distance {d:.2e} >= {tol:g}; RMS {lv['rms']:.4e} in "
-              f"[{lv['rms_lo']:.4e}, {lv['rms_hi']:.4e}] as numpy's; PSD as numpy's; verdict {at['verdict']}")
+              f"[{lv['rms_lo']:.4e}, {lv['rms_hi']:.4e}] as numpy's; PSD as numpy's; verdict {at['verdict']}{modal}")
+
+
+def check_modal(res, s):
+    """The unstable modes' share against numpy on the modal coordinates the run wrote: their RMS,
+    each mode's part |Re(phi_j q_j)|^2 over the motion's variance (the shapes from /stability), the
+    modes those of /stability's unstable list, the coordinates' window mean zero, the
+    signal DOF's fitted part no larger than the signal."""
+    at = s.attrs
+    st = res.stability
+    if "mode_rms" not in s:
+        fail(f"no /steady_state/mode_rms ({at.get('modes_note', 'no note')})")
+    idx = np.asarray(s["mode_index"], dtype=int)
+    if list(idx) != list(st.unstable):
+        fail(f"modes {list(idx)} projected on, /stability's unstable ones are {list(st.unstable)}")
+    if np.max(np.abs(np.asarray(s["mode_frequency"]) - st.frequency[idx])) > 1e-9 * np.max(st.frequency[idx]):
+        fail("mode_frequency differs from /stability's")
+    q = np.asarray(s["modal_coordinates"])
+    k = len(idx)
+    t = np.asarray(s["t"])
+    if q.ndim != 2 or q.shape[1] != 2 * k or not 2 <= q.shape[0] <= len(t):
+        fail(f"modal_coordinates of shape {q.shape}, expected (<= {len(t)}, {2 * k})")
+    # The window: the last q.shape[0] of the analysed records, starting at modes_t_from.
+    if abs(t[len(t) - q.shape[0]] - float(at["modes_t_from"])) > 1e-9 * abs(t[-1]):
+        fail(f"the modal window starts at t = {float(at['modes_t_from'])}, its records at {t[len(t) - q.shape[0]]}")
+    if np.max(np.abs(q.mean(axis=0))) > 1e-9 * np.max(np.abs(q)):
+        fail("the modal coordinates' mean over the window is not zero")
+    a, b = q[:, 0::2], q[:, 1::2]
+    rms = np.sqrt(np.mean(a ** 2 + b ** 2, axis=0))
+    if np.max(np.abs(rms - s["mode_rms"])) > 1e-9 * np.max(rms):
+        fail(f"mode_rms {np.asarray(s['mode_rms'])}, numpy gives {rms}")
+    var = float(at["modes_variance"])
+    share = []
+    for j, m in enumerate(idx):
+        phi = st.mode(m)
+        part = np.outer(a[:, j], phi.real) + np.outer(b[:, j], phi.imag)  # Re(phi (a - i b))
+        share.append(np.mean(np.sum(part ** 2, axis=1)) / var)
+    share = np.array(share)
+    if np.max(np.abs(share - s["mode_share"])) > 1e-8 * max(np.max(share), 1e-300):
+        fail(f"mode_share {np.asarray(s['mode_share'])}, numpy gives {share}")
+    ex = float(at["modes_explained"])
+    if not 0 <= ex <= 1 or abs(ex + float(at["modes_residual"]) - 1) > 1e-12:
+        fail(f"modes_explained {ex}, modes_residual {float(at['modes_residual'])}")
+    # The fitted part at the signal DOF over the same records: a least-squares fit of all DOFs
+    # cannot put more variance on one DOF than the whole motion has.
+    dof = int(at["dof"])
+    fit = sum(a[:, j] * st.mode(m).real[dof] + b[:, j] * st.mode(m).imag[dof] for j, m in enumerate(idx))
+    if np.mean(fit ** 2) > var * (1 + 1e-9):
+        fail("the fitted part at the signal DOF exceeds the motion's variance")
+    return "; modal " + ", ".join(f"mode {m} {f:.0f} Hz RMS {r:.3e} share {sh:.1%}" for m, f, r, sh in
+                                  zip(idx, np.asarray(s["mode_frequency"]), rms, share)) + f", explained {ex:.1%} (as numpy's)"
 
 
 if __name__ == "__main__":

@@ -247,10 +247,181 @@ TEST(SteadyState, ThePipelineSettlesStatisticallyOnAnIrregularPad)
         ASSERT_EQ(fl.size(), 2u);
         for (double g : fl) EXPECT_LT(std::abs(Nearest(r.signal, g) / g - 1), 0.05) << g;
         EXPECT_GT(r.normal.mean, 0);
+        // The modal projection on both unstable modes: defined, shares and explained fraction in [0, 1].
+        ASSERT_EQ(r.modal.rms.size(), 2u) << r.modal_note;
+        EXPECT_GE(r.modal.from, r.signal.cut);
+        EXPECT_GT(r.modal.explained, 0.0);
+        EXPECT_LE(r.modal.explained, 1.0);
+        for (size_t j = 0; j < 2; ++j) {
+          EXPECT_GT(r.modal.rms[j], 0.0);
+          EXPECT_GE(r.modal.share[j], 0.0);
+        }
       }
+      EXPECT_EQ(r.mode_index, pl.stability.unstable);
     }
   }
   EXPECT_EQ(PetscOptionsPop(), 0);
   EXPECT_EQ(PetscOptionsDestroy(&opts), 0);
   ASSERT_EQ(ierr, 0);
+}
+
+namespace {
+
+// A small non-normal system, its modes by Eigen independently of squeal: M, C = b K + friction-like
+// circulatory stiffness (K + mu S, S not symmetric), the first-order matrix's eigenvectors' upper
+// halves as the shapes. The k modes with the largest real parts and omega > 0.
+struct SmallModes {
+  std::vector<Eigen::VectorXcd> phi;
+  std::vector<std::complex<double>> lambda;
+};
+
+SmallModes ModesOfASmallNonNormalSystem(int n, int k)
+{
+  std::mt19937                           g(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::MatrixXd                        A = Eigen::MatrixXd::Zero(n, n), S(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) A(i, j) = u(g), S(i, j) = u(g);
+  const Eigen::MatrixXd K = A * A.transpose() + n * Eigen::MatrixXd::Identity(n, n);
+  const Eigen::VectorXd m = Eigen::VectorXd::Constant(n, 1.0) + 0.5 * Eigen::VectorXd::NullaryExpr(n, [&]() { return std::abs(u(g)); });
+  const Eigen::MatrixXd Kt = K + 2.0 * S, C = 1e-3 * K;
+  Eigen::MatrixXd       F  = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  F.topRightCorner(n, n).setIdentity();
+  const Eigen::MatrixXd Minv = m.cwiseInverse().asDiagonal();
+  F.bottomLeftCorner(n, n)    = -Minv * Kt;
+  F.bottomRightCorner(n, n)   = -Minv * C;
+  Eigen::EigenSolver<Eigen::MatrixXd> es(F);
+  std::vector<int>                    idx;
+  for (int i = 0; i < 2 * n; ++i)
+    if (es.eigenvalues()(i).imag() > 1e-6) idx.push_back(i);
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return es.eigenvalues()(a).real() > es.eigenvalues()(b).real(); });
+  SmallModes r;
+  for (int j = 0; j < k; ++j) {
+    const Eigen::VectorXcd v = es.eigenvectors().col(idx[j]).head(n);
+    r.phi.push_back(v / v.cwiseAbs().maxCoeff());
+    r.lambda.push_back(es.eigenvalues()(idx[j]));
+  }
+  return r;
+}
+
+// The exact modal coordinate q_j(t) of the synthetic records: a slowly modulated rotation at the
+// mode's frequency (any function would do: the fit is per record).
+std::complex<double> ExactQ(const std::vector<std::complex<double>> &lambda, int j, double t)
+{
+  const double w = lambda[j].imag(), a = 1.0 / (1 + j);
+  return a * (1 + 0.3 * std::sin(2 * M_PI * 37 * t + j)) * std::exp(std::complex<double>(0, w * t + 0.7 * j));
+}
+
+void SplitModes(const SmallModes &sm, std::vector<std::vector<double>> &re, std::vector<std::vector<double>> &im)
+{
+  for (const Eigen::VectorXcd &p : sm.phi) {
+    re.emplace_back(p.size()), im.emplace_back(p.size());
+    for (Eigen::Index i = 0; i < p.size(); ++i) re.back()[i] = p(i).real(), im.back()[i] = p(i).imag();
+  }
+}
+
+} // namespace
+
+// Records built as u_i = u_e + sum_j Re(phi_j q_j(t_i)) (+ g(t_i) p, p orthogonal to the shapes):
+// the projection returns q_j (mean over the window removed) to 1e-10, the modal RMS and shares
+// computed from the exact parts, and the residual share of g p, whatever the chunking.
+TEST(SteadyState, ModalProjectionRecoversTheModalCoordinatesOfANonNormalSystem)
+{
+  const int        n = 14, k = 3;
+  const SmallModes sm = ModesOfASmallNonNormalSystem(n, k);
+  // The shapes are far from orthogonal (a non-normal system): the fit must not rely on it.
+  EXPECT_GT(std::abs(sm.phi[0].dot(sm.phi[1])) / (sm.phi[0].norm() * sm.phi[1].norm()), 1e-3);
+  std::vector<std::vector<double>> re, im;
+  SplitModes(sm, re, im);
+  // p: orthogonal to every Re phi and Im phi (the last column of a full QR of the shapes).
+  Eigen::MatrixXd B(n, 2 * k);
+  for (int j = 0; j < k; ++j) B.col(2 * j) = sm.phi[j].real(), B.col(2 * j + 1) = sm.phi[j].imag();
+  const Eigen::MatrixXd Qf = Eigen::HouseholderQR<Eigen::MatrixXd>(B).householderQ();
+  const Eigen::VectorXd p  = Qf.col(n - 1);
+  Eigen::VectorXd       ue(n);
+  for (int i = 0; i < n; ++i) ue(i) = 0.1 * (i + 1);
+  const double dt = 2e-5;
+  const size_t nrec = 3001, cut = 1000, every = 64;
+  for (double gp : {0.0, 0.4}) {
+    // The records, rank-0 style: record-major N values each.
+    std::vector<double>                 U(nrec * n);
+    std::vector<Eigen::VectorXcd>       q(nrec, Eigen::VectorXcd(k));
+    std::vector<double>                 gg(nrec);
+    for (size_t i = 0; i < nrec; ++i) {
+      const double    t = i * dt;
+      Eigen::VectorXd u = ue;
+      for (int j = 0; j < k; ++j) {
+        q[i](j) = ExactQ(sm.lambda, j, t);
+        u += (sm.phi[j] * q[i](j)).real();
+      }
+      gg[i] = gp * std::cos(2 * M_PI * 911 * t);
+      u += gg[i] * p;
+      std::copy(u.data(), u.data() + n, U.begin() + (long)(i * n));
+    }
+    steady::ModalProjection mp;
+    std::string             why;
+    ASSERT_TRUE(mp.SetUp(re, im, every, &why)) << why;
+    // Three chunks, each starting with the last one's end record (as SteadyState::Run gets them).
+    const size_t edges[] = {0, 700, 1901, nrec - 1};
+    for (int c = 0; c < 3; ++c) mp.Add(U.data() + edges[c] * n, edges[c + 1] - edges[c] + 1, c == 0 ? 0 : 1);
+    ASSERT_EQ(mp.Records(), nrec);
+    const steady::ModalProjection::Result r = mp.Analyse(cut);
+    EXPECT_EQ(r.from, 1024u); // the first checkpoint at or after the cut
+    ASSERT_EQ(r.records, nrec - r.from);
+    const double          m = (double)r.records;
+    Eigen::VectorXcd      qbar = Eigen::VectorXcd::Zero(k);
+    double                gbar = 0;
+    for (size_t i = r.from; i < nrec; ++i) qbar += q[i], gbar += gg[i];
+    qbar /= m, gbar /= m;
+    double err = 0, scale = 0;
+    std::vector<double> rms(k, 0.0), part(k, 0.0);
+    double              var = 0, var_g = 0;
+    for (size_t i = r.from; i < nrec; ++i) {
+      const Eigen::VectorXcd dq = q[i] - qbar;
+      Eigen::VectorXd        y  = Eigen::VectorXd::Zero(n);
+      for (int j = 0; j < k; ++j) {
+        // q_j = a_j - i b_j
+        err   = std::max({err, std::abs(r.q((long)(i - r.from), 2 * j) - dq(j).real()), std::abs(r.q((long)(i - r.from), 2 * j + 1) + dq(j).imag())});
+        scale = std::max(scale, std::abs(dq(j)));
+        rms[j] += std::norm(dq(j));
+        const Eigen::VectorXd yj = (sm.phi[j] * dq(j)).real();
+        part[j] += yj.squaredNorm();
+        y += yj;
+      }
+      y += (gg[i] - gbar) * p;
+      var += y.squaredNorm(), var_g += (gg[i] - gbar) * (gg[i] - gbar);
+    }
+    EXPECT_LT(err / scale, 1e-10) << "g " << gp;
+    for (int j = 0; j < k; ++j) {
+      EXPECT_NEAR(r.rms[j] / std::sqrt(rms[j] / m), 1.0, 1e-10) << j;
+      EXPECT_NEAR(r.share[j], part[j] / var, 1e-10) << j;
+    }
+    EXPECT_NEAR(r.variance / (var / m), 1.0, 1e-10);
+    EXPECT_NEAR(r.explained, 1 - var_g / var, 1e-10) << "g " << gp;
+    if (gp > 0) EXPECT_LT(r.explained, 0.99); // the orthogonal part is seen
+    EXPECT_GT(r.cond, 1.0);
+  }
+}
+
+// Dependent shapes define no modal coordinates: SetUp refuses and says why.
+TEST(SteadyState, ModalProjectionRefusesDependentShapes)
+{
+  const SmallModes                 sm = ModesOfASmallNonNormalSystem(8, 2);
+  std::vector<std::vector<double>> re, im;
+  SplitModes(sm, re, im);
+  re[1] = re[0], im[1] = im[0];
+  steady::ModalProjection mp;
+  std::string             why;
+  EXPECT_FALSE(mp.SetUp(re, im, 10, &why));
+  EXPECT_NE(why.find("dependent"), std::string::npos) << why;
+  // A real mode (no imaginary part) is one column.
+  re.resize(1), im.assign(1, {});
+  ASSERT_TRUE(mp.SetUp(re, im, 10, &why)) << why;
+  std::vector<double> U;
+  for (int i = 0; i < 50; ++i)
+    for (double v : re[0]) U.push_back(std::sin(0.3 * i) * v);
+  mp.Add(U.data(), 50);
+  const steady::ModalProjection::Result r = mp.Analyse(0);
+  EXPECT_NEAR(r.explained, 1.0, 1e-12);
+  EXPECT_NEAR(r.share[0], 1.0, 1e-12);
 }

@@ -31,6 +31,8 @@
 #include "squeal/integration/transient.h"
 #include "squeal/io/h5.h"
 
+#include <Eigen/Dense>
+
 #include <complex>
 #include <string>
 #include <vector>
@@ -81,6 +83,58 @@ struct Analysis {
 };
 Analysis Analyse(const std::vector<double> &x, double dt, long batches);
 
+// Which linear modes carry the motion: the least-squares fit of the state records u_i (mean over
+// the window removed) on the real basis B = [Re phi_1, Im phi_1, ..., Re phi_k, Im phi_k] (one
+// column for a real mode), u_i - ubar ~ sum_j Re phi_j a_ji + Im phi_j b_ji = Re(phi_j q_ji) with
+// q_j = a_j - i b_j the complex modal coordinate (phi normalised as the stability analysis does).
+// Least squares rather than left eigenvectors: the coordinates are the unique best fit whenever
+// the shapes are independent, however non-normal the system; the adjoint eigenvectors would give
+// each mode's coefficient in the expansion over all 2N modes, but they are not computed (on a
+// reduced model they are another PEP), and truncated to the k unstable modes that projection
+// leaves a residual that is not the smallest. The same fit as scripts/steady_state.py's.
+//
+// The records stream through in chunks (Add), none kept: per record only Q^T (u_i - u_ref) (B = Q R,
+// thin Householder QR) and |u_i - u_ref|^2, plus the running sum of u_i - u_ref every `every`
+// records, so that the mean and the variance come out exactly over a window that starts at such a
+// checkpoint (the first one at or after the start-up cut).
+class ModalProjection {
+public:
+  // modes_re[j], modes_im[j]: the N values of mode j (modes_im[j] empty: a real mode, one column).
+  // False with `why` when the shapes are (nearly) dependent: no coordinates are then defined.
+  bool SetUp(const std::vector<std::vector<double>> &modes_re, const std::vector<std::vector<double>> &modes_im, size_t every,
+             std::string *why);
+  // Records u_i = u[i N .. (i+1) N), i = first..n-1 (n = u.size() / N).
+  void   Add(const double *u, size_t n, size_t first = 0);
+  size_t Records() const { return e_.size(); }
+  size_t Modes() const { return cols_.size(); }
+  size_t Size() const { return N_; }
+
+  struct Result {
+    size_t              from = 0, records = 0; // the window: records from..from+records-1
+    std::vector<double> rms;                   // per mode: sqrt(mean |q_j - qbar_j|^2)
+    // Per mode: mean |Re(phi_j q_j)|^2 / mean |u - ubar|^2 (the modes' parts are not orthogonal: the
+    // shares need not add up to `explained`).
+    std::vector<double> share;
+    double              explained = 0; // 1 - |residual|^2 / |u - ubar|^2 over the window (all modes together)
+    double              variance  = 0; // mean |u - ubar|^2
+    double              cond      = 0; // condition number of B's R factor
+    Eigen::MatrixXd     q;             // records x 2k: a_j (column 2j) and b_j (2j + 1), mean removed
+  };
+  // Over the records from the first checkpoint at or after `cut` (from `cut` itself if that leaves
+  // fewer than 2 records, or from the last checkpoint before it).
+  Result Analyse(size_t cut) const;
+
+private:
+  size_t                           N_ = 0, every_ = 1;
+  double                           cond_ = 0;
+  Eigen::MatrixXd                  Q_, R_;
+  std::vector<std::vector<size_t>> cols_;
+  Eigen::VectorXd                  ref_, sum_;
+  std::vector<Eigen::VectorXd>     checkpoints_; // sum of u_i - u_ref over records < c every
+  std::vector<double>              e_;           // |u_i - u_ref|^2
+  std::vector<Eigen::VectorXd>     z_;           // Q^T (u_i - u_ref)
+};
+
 } // namespace steady
 
 struct SteadyStateResult {
@@ -90,7 +144,15 @@ struct SteadyStateResult {
   PetscReal              T_ref = 0, periods = 0; // the starting mode's period, and the run's length in it
   steady::Analysis       signal;
   steady::Levels         normal; // over the same records as the signal's levels
+  // The unstable modes' share (rank 0): stability's unstable indices, their frequency and growth
+  // rate; `modal` empty with `modal_note` saying why (no unstable mode, no shapes, dependent shapes).
+  std::vector<PetscInt>             mode_index;
+  std::vector<PetscReal>            mode_frequency, mode_growth;
+  steady::ModalProjection           projection;
+  steady::ModalProjection::Result   modal;
+  std::string                       modal_note;
   bool                   converged = false, complete = false;
+  std::string            interrupted; // non-empty: a signal stopped the run, and where
   PetscReal              seconds = 0;
   std::string            start; // where the run started (the mode, or the pre-periods' end state)
 };
