@@ -308,10 +308,10 @@ PetscErrorCode EnergyAnalysis::View(const EnergyEstimate &est, PetscViewer viewe
     PetscCall(PetscViewerASCIIPrintf(viewer, "largest DOF amplitude of the estimate's motion %.4e m (RMS %.4e m) at DOF %" PetscInt_FMT "\n",
                                      (double)est.dof_amplitude, (double)(est.dof_amplitude / std::sqrt(2.0)), est.dof));
     if (est.impacts) {
-      PetscCall(PetscViewerASCIIPrintf(viewer, "at q0: reaction power %.4e W = damping %.4e W + impact losses %.4e W (W_nn at %" PetscInt_FMT " steps per period; -energy_impacts false leaves them out)\n",
+      PetscCall(PetscViewerASCIIPrintf(viewer, "at q0: reaction power %.4e W = damping %.4e W + impact losses %.4e W (W_nn at %" PetscInt_FMT " steps per period)\n",
                                        (double)est.P_R0, (double)est.P_c0, (double)est.P_I0,
                                        est.impact_steps));
-    } else PetscCall(PetscViewerASCIIPrintf(viewer, "no impact losses in the balance (-energy_impacts false)\n"));
+    }
   }
   else
     PetscCall(PetscViewerASCIIPrintf(viewer,
