@@ -3,6 +3,8 @@
 #include "squeal/core/interrupt.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/options.h"
+#include "squeal/integration/theta.h"
+#include "squeal/shooting/shooting.h"
 
 #include <cmath>
 
@@ -24,22 +26,30 @@ PetscErrorCode EnergyAnalysis::SetFromOptions()
                             nullptr));
   PetscCall(PetscOptionsBool("-all_modes", "Estimate every unstable mode (one line each), not only the chosen one",
                              "EnergyAnalysis", all_modes, &all_modes, nullptr));
+  PetscCall(PetscOptionsBool("-impacts", "Impact losses in the balance: the tensile impulse the separated points miss, lost at re-contact",
+                             "EnergyAnalysis", impacts, &impacts, nullptr));
+  PetscCall(PetscOptionsInt("-impact_steps", "Steps per period of the Delassus operator of the impact losses (-1: shooting's default for the model)",
+                            "EnergyAnalysis", impact_steps, &impact_steps, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   // -7 ran as -1 (the most unstable mode) without a word.
   PetscCheck(mode >= -1, comm_, kErrInput, "option -energy_mode = %" PetscInt_FMT ": expected a mode index >= 0, or -1 for the most unstable mode",
              mode);
+  PetscCheck(impact_steps == PETSC_DECIDE || impact_steps >= 1, comm_, kErrInput,
+             "option -energy_impact_steps = %" PetscInt_FMT ": expected >= 1, or -1 for shooting's default", impact_steps);
   PetscCheck(n_scan >= 2 && samples >= 8 && bisections >= 0 && extend >= 0, comm_, kErrInput,
              "energy: need -energy_n_scan >= 2, -energy_samples >= 8, -energy_bisections >= 0, -energy_extend >= 0");
   PetscFunctionReturn(0);
 }
 
-PetscReal EnergyAnalysis::Reactions(PetscReal q) const
+void EnergyAnalysis::Powers(PetscReal q, PetscReal *P_R, PetscReal *P_I, std::vector<PetscReal> *J) const
 {
   const ContactSet &cs          = *cs_;
   const bool        rectilinear = cs.law == FrictionLaw::Rectilinear;
   const size_t      ns          = cos_.size();
+  const bool        impacts     = Wn_.size() > 0 || J;
   PetscReal         sum         = 0;
+  if (impacts) J_.assign(N_.size(), 0.0);
   // Points outside, samples inside: the point's coefficients stay in registers and the inner loop
   // is plain arithmetic (sqrt, not hypot: the velocities are far from overflow). The scan calls
   // this n_scan + bisections times, samples x points each: 4e8 evaluations for 52 points.
@@ -47,12 +57,15 @@ PetscReal EnergyAnalysis::Reactions(PetscReal q) const
     const PetscReal pr = q * psi_[p].real(), pi = q * psi_[p].imag(), Np = N_[p], V = speed_[p];
     const PetscReal tr = -q * omega_ * phit_[p].real(), ti = -q * omega_ * phit_[p].imag();
     const PetscReal br = -q * omega_ * phib_[p].real(), bi = -q * omega_ * phib_[p].imag();
-    PetscReal       acc = 0;
+    PetscReal       acc = 0, tension = 0;
     for (size_t k = 0; k < ns; ++k) {
       // Re(z e^{i w t}) = Re z cos - Im z sin; velocity Re(i w z e^{i w t}) = -w (Re z sin + Im z cos).
       const PetscReal c = cos_[k], s = sin_[k];
       const PetscReal rn = Np + (pr * c - pi * s);
-      if (rn <= 0) continue;
+      if (rn <= 0) {
+        tension -= rn;
+        continue;
+      }
       const PetscReal ut = tr * s + ti * c, ub = br * s + bi * c;
       const PetscReal st = V - ut; // surface velocity relative to the structure
       if (rectilinear) acc += rn * (st > 0 ? 1.0 : (st < 0 ? -1.0 : 0.0)) * ut;
@@ -62,8 +75,15 @@ PetscReal EnergyAnalysis::Reactions(PetscReal q) const
       }
     }
     sum += acc;
+    if (impacts) J_[p] = tension * period_ / ns;
   }
-  return cs.Mu() * sum / ns;
+  *P_R = cs.Mu() * sum / ns;
+  *P_I = 0;
+  if (Wn_.size() > 0) {
+    const Eigen::Map<const Eigen::VectorXd> j(J_.data(), (Eigen::Index)J_.size());
+    *P_I = 0.5 * j.dot(Wn_ * j) / period_;
+  }
+  if (J) *J = J_;
 }
 
 PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool *found) const
@@ -78,17 +98,22 @@ PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool 
   est.q.resize(n_scan);
   est.P_damping.resize(n_scan);
   est.P_reactions.resize(n_scan);
+  est.P_impacts.assign(est.impacts ? n_scan : 0, 0.0);
+  std::vector<PetscReal> f(n_scan);
   PetscInt crossing = -1;
   for (PetscInt k = 0; k < n_scan; ++k) {
     if (k % poll_every == 0) PetscCall(InterruptPoint(comm_, "the energy scan"));
     const PetscReal q  = (k + 1) * q_max / n_scan;
     est.q[k]           = q;
     est.P_damping[k]   = 0.5 * q * q * omega_ * omega_ * cphi_;
-    est.P_reactions[k] = Reactions(q);
-    if (crossing < 0 && k > 0 && est.P_reactions[k - 1] - est.P_damping[k - 1] > 0 && est.P_reactions[k] - est.P_damping[k] <= 0)
-      crossing = k - 1;
+    PetscReal P_I;
+    Powers(q, &est.P_reactions[k], &P_I);
+    if (est.impacts) est.P_impacts[k] = P_I;
+    f[k] = est.P_reactions[k] - est.P_damping[k] - P_I;
+    if (crossing < 0 && k > 0 && f[k - 1] > 0 && f[k] <= 0) crossing = k - 1;
     if (crossing >= 0 && !full_scan) {
       est.q.resize(k + 1), est.P_damping.resize(k + 1), est.P_reactions.resize(k + 1);
+      if (est.impacts) est.P_impacts.resize(k + 1);
       break;
     }
   }
@@ -96,7 +121,7 @@ PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool 
   // balance lies in (0, q_1]; f > 0 near 0 for an unstable mode, so bisect there.
   PetscReal lo = 0, hi = 0;
   if (crossing >= 0) lo = est.q[crossing], hi = est.q[crossing + 1];
-  else if (est.P_reactions[0] - est.P_damping[0] <= 0 && PowerBalance(1e-6 * est.q[0]) > 0) {
+  else if (f[0] <= 0 && PowerBalance(1e-6 * est.q[0]) > 0) {
     lo = 1e-6 * est.q[0], hi = est.q[0];
     crossing = 0;
   }
@@ -110,7 +135,49 @@ PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool 
   PetscFunctionReturn(0);
 }
 
-PetscReal EnergyAnalysis::PowerBalance(PetscReal q) const { return Reactions(q) - 0.5 * q * q * omega_ * omega_ * cphi_; }
+PetscReal EnergyAnalysis::PowerBalance(PetscReal q) const
+{
+  PetscReal P_R, P_I;
+  Powers(q, &P_R, &P_I);
+  return P_R - P_I - 0.5 * q * q * omega_ * omega_ * cphi_;
+}
+
+PetscErrorCode EnergyAnalysis::SetUpImpacts(const Model &model, const SlidingEquilibrium &eq, EnergyEstimate &est)
+{
+  PetscFunctionBeginUser;
+  Wn_ = Eigen::SparseMatrix<PetscReal>();
+  est.impacts      = impacts && !eq.active.empty();
+  est.impact_steps = 0;
+  if (!est.impacts) PetscFunctionReturn(0);
+  // The integrator the transient and shooting would build (the same -theta_ options), at their
+  // step: its Delassus operator is the velocity per impulse of the scheme that does the impacts.
+  est.impact_steps = impact_steps == PETSC_DECIDE ? Shooting::DefaultSteps(model.Size()) : impact_steps;
+  ThetaIntegrator ti(comm_);
+  PetscCall(ti.SetFromOptions());
+  PetscCall(ti.SetUp(model, period_ / est.impact_steps));
+  // Every rank holds the same W (replicated), so every rank keeps the same entries.
+  const PetscInt        nc = model.contacts.Size();
+  std::vector<PetscInt> slot(nc, -1); // contact -> its place in eq.active
+  for (size_t i = 0; i < eq.active.size(); ++i) slot[eq.active[i]] = (PetscInt)i;
+  std::vector<Eigen::Triplet<PetscReal>> t;
+  auto keep = [&](Eigen::Index r, Eigen::Index c, PetscReal v) {
+    if (r % 3 != kN || c % 3 != kN || v == 0) return;
+    const PetscInt i = slot[r / 3], j = slot[c / 3];
+    if (i >= 0 && j >= 0) t.emplace_back(i, j, v);
+  };
+  if (ti.SparseDelassus()) {
+    const Eigen::SparseMatrix<PetscReal> &W = ti.DelassusSparse();
+    for (Eigen::Index k = 0; k < W.outerSize(); ++k)
+      for (Eigen::SparseMatrix<PetscReal>::InnerIterator it(W, k); it; ++it) keep(it.row(), it.col(), it.value());
+  } else {
+    const Eigen::MatrixXd &W = ti.Delassus();
+    for (const PetscInt a : eq.active)
+      for (const PetscInt b : eq.active) keep(3 * a + kN, 3 * b + kN, W(3 * a + kN, 3 * b + kN));
+  }
+  Wn_.resize((Eigen::Index)eq.active.size(), (Eigen::Index)eq.active.size());
+  Wn_.setFromTriplets(t.begin(), t.end());
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab,
                                         EnergyEstimate &est)
@@ -127,6 +194,7 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   est.omega = omega_ = m.omega;
   est.sigma          = m.sigma;
   est.T0             = 2 * PETSC_PI / m.omega;
+  period_            = est.T0;
   cs_                = &cs;
 
   // phi^H C phi and (-omega^2 M + i omega C + K) phi, split in real and imaginary parts.
@@ -187,6 +255,8 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
     sin_[k] = std::sin(2 * PETSC_PI * k / samples);
   }
 
+  PetscCall(SetUpImpacts(model, eq, est));
+
   est.found = false;
   for (est.extensions = 0; est.extensions <= extend; ++est.extensions) {
     est.q_max_factor = q_max_factor * std::ldexp(1.0, (int)est.extensions);
@@ -195,12 +265,21 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   }
   if (!est.found) est.extensions = extend;
   if (est.found) {
+    Powers(est.q0, &est.P_R0, &est.P_I0);
+    est.P_c0 = 0.5 * est.q0 * est.q0 * omega_ * omega_ * cphi_;
     // (7.5): the phase puts the normalising component at its maximum, on the surface (phi_n = 0).
     PetscCall(VecDuplicate(eq.U, est.U0.out()));
     PetscCall(VecWAXPY(est.U0, est.q0, m.phi_re, eq.U));
     PetscCall(VecDuplicate(eq.U, est.dU0.out()));
     PetscCall(VecCopy(m.phi_im, est.dU0));
     PetscCall(VecScale(est.dU0, -est.q0 * m.omega));
+    VecH mag;
+    PetscCall(VecDuplicate(m.phi_re, mag.out()));
+    PetscCall(VecPointwiseMult(mag, m.phi_re, m.phi_re));
+    PetscCall(VecPointwiseMult(t1, m.phi_im, m.phi_im));
+    PetscCall(VecAXPY(mag, 1.0, t1));
+    PetscCall(VecMax(mag, &est.dof, &est.dof_amplitude));
+    est.dof_amplitude = est.q0 * std::sqrt(est.dof_amplitude);
   }
   PetscFunctionReturn(0);
 }
@@ -223,9 +302,17 @@ PetscErrorCode EnergyAnalysis::View(const EnergyEstimate &est, PetscViewer viewe
   if (est.extensions > 0 && est.found)
     PetscCall(PetscViewerASCIIPrintf(viewer, "no balance up to %.4g q_sep (-energy_q_max_factor): range doubled %" PetscInt_FMT " time(s)\n",
                                      (double)q_max_factor, est.extensions));
-  if (est.found)
+  if (est.found) {
     PetscCall(PetscViewerASCIIPrintf(viewer, "power balance at q0 = %.6e (%.3f q_sep); shooting guess T0 = %.7f s\n", (double)est.q0,
                                      (double)(est.q0 / est.q_sep), (double)est.T0));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "largest DOF amplitude of the estimate's motion %.4e m (RMS %.4e m) at DOF %" PetscInt_FMT "\n",
+                                     (double)est.dof_amplitude, (double)(est.dof_amplitude / std::sqrt(2.0)), est.dof));
+    if (est.impacts) {
+      PetscCall(PetscViewerASCIIPrintf(viewer, "at q0: reaction power %.4e W = damping %.4e W + impact losses %.4e W (W_nn at %" PetscInt_FMT " steps per period)\n",
+                                       (double)est.P_R0, (double)est.P_c0, (double)est.P_I0,
+                                       est.impact_steps));
+    }
+  }
   else
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "no balance up to %.4g q_sep (%" PetscInt_FMT " doubling(s) of -energy_q_max_factor %g): reaction power "
@@ -248,6 +335,12 @@ PetscErrorCode EnergyAnalysis::Write(const EnergyEstimate &est, io::H5Writer &ou
   PetscCall(out.WriteArray("/energy/P_reactions", {n}, est.P_reactions.data()));
   PetscCall(out.WriteAttribute("/energy/P_damping", "units", "W"));
   PetscCall(out.WriteAttribute("/energy/P_reactions", "units", "W"));
+  if (est.impacts) {
+    PetscCall(out.WriteArray("/energy/P_impacts", {n}, est.P_impacts.data()));
+    PetscCall(out.WriteAttribute("/energy/P_impacts", "units", "W"));
+    PetscCall(out.WriteAttribute("/energy", "impact_steps", est.impact_steps));
+  }
+  PetscCall(out.WriteAttribute("/energy", "impacts", (PetscInt)est.impacts));
   PetscCall(out.WriteAttribute("/energy/q", "units", "m (modal amplitude, largest tangential contact component of phi = 1)"));
   PetscCall(out.WriteAttribute("/energy", "mode", est.mode));
   PetscCall(out.WriteAttribute("/energy", "q_sep", est.q_sep));

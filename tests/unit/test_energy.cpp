@@ -4,6 +4,9 @@
 #include "squeal/integration/transient.h"
 #include "squeal/model/builders.h"
 
+#include <cmath>
+#include <cstdio>
+
 #include <gtest/gtest.h>
 
 using namespace squeal;
@@ -95,4 +98,118 @@ TEST(Energy, AmplitudeCloseToTransientCycle)
   const double half_t = 0.5 * tr.summary.peak_to_peak[0];
   EXPECT_NEAR(s.est.q0 / half_t, 1.0, 0.1);
   EXPECT_NEAR(s.est.T0 / tr.summary.period, 1.0, 0.02);
+}
+
+namespace {
+
+// Tensile impulse of N + a cos(omega t) over one period (a = |q psi|): it pulls on
+// |x| < alpha = arccos(N / a) about the trough, int (a cos x - N) dx / omega there.
+double TensileImpulse(double N, double a, double omega)
+{
+  if (a <= N) return 0;
+  const double alpha = std::acos(N / a);
+  return 2 * (a * std::sin(alpha) - N * alpha) / omega;
+}
+
+} // namespace
+
+// Impact losses (7.6) on a model with several contacts in their own frames (the chain: H is not the
+// identity, W_nn is coupled): against a dense reference that shares nothing with the library's
+// path: psi from the dense dynamic stiffness, the tensile impulses in closed form (not sampled),
+// and W_nn = H_n^T (M + h theta C + h^2 theta^2 K)^-1 H_n by Eigen's LU (not the integrator's KSP).
+TEST(Energy, ImpactLossesMatchClosedFormImpulsesAndDenseDelassus)
+{
+  ChainParams p;
+  p.cells = 4;
+  Model              model;
+  SlidingEquilibrium eq;
+  StabilityResult    stab;
+  EnergyAnalysis     ea(PETSC_COMM_WORLD);
+  EnergyEstimate     est;
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  StabilitySolver    ss(PETSC_COMM_WORLD);
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, p, model), 0);
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  ASSERT_EQ(ss.Solve(model, eq, stab), 0);
+  ASSERT_EQ(ea.SetFromOptions(), 0);
+  ASSERT_FALSE(ea.impacts); // the default, for now
+  ea.impacts      = PETSC_TRUE;
+  ea.impact_steps = 8;     // a long step: h^2 K couples the points in W_nn
+  ASSERT_EQ(ea.Estimate(model, eq, stab, est), 0);
+  ASSERT_GE(est.mode, 0);
+  ASSERT_EQ((PetscInt)eq.active.size(), p.cells);
+  ASSERT_TRUE(est.impacts);
+  EXPECT_EQ(est.impact_steps, 8);
+
+  const PetscInt        N = model.Size();
+  const Eigen::MatrixXd M = test::ToDense(model.M), C = test::ToDense(model.C), K = test::ToDense(model.K);
+  const Eigen::MatrixXd Hn = test::DenseColumns(model.contacts, N, kN);
+  const double          w = est.omega, T = 2 * M_PI / w, h = T / est.impact_steps, th = 0.5;
+  const Eigen::MatrixXd A = M + h * th * C + h * h * th * th * K;
+  Eigen::MatrixXd       W(p.cells, p.cells); // on eq.active's order
+  {
+    const Eigen::MatrixXd Wall = Hn.transpose() * A.partialPivLu().solve(Hn);
+    for (PetscInt i = 0; i < p.cells; ++i)
+      for (PetscInt j = 0; j < p.cells; ++j) W(i, j) = Wall(eq.active[i], eq.active[j]);
+  }
+  ASSERT_EQ(ea.NormalDelassus().rows(), p.cells);
+  EXPECT_LT((Eigen::MatrixXd(ea.NormalDelassus()) - W).norm(), 1e-10 * W.norm());
+  EXPECT_GT(std::abs(W(0, 1)), 1e-3 * W(0, 0)); // coupled: the test sees the off-diagonal terms
+
+  const Mode                     &m = stab.modes[est.mode];
+  const Eigen::VectorXcd          phi = test::ToDense(m.phi_re).cast<std::complex<double>>() +
+                                   std::complex<double>(0, 1) * test::ToDense(m.phi_im).cast<std::complex<double>>();
+  const Eigen::MatrixXcd          D = (-w * w * M + K).cast<std::complex<double>>() + std::complex<double>(0, w) * C.cast<std::complex<double>>();
+  const Eigen::VectorXcd          psi = Hn.transpose().cast<std::complex<double>>() * (D * phi);
+  for (double factor : {0.5, 2.0, 7.0}) {
+    const double   q = factor * est.q_sep;
+    Eigen::VectorXd J(p.cells);
+    for (PetscInt c = 0; c < p.cells; ++c) {
+      const PetscInt a = eq.active[c];
+      J(c)             = TensileImpulse(eq.N[a], q * std::abs(psi(a)) / Hn.col(a).squaredNorm(), w);
+    }
+    const double P_ref = 0.5 * J.dot(W * J) / T;
+    PetscReal    P_R, P_I;
+    std::vector<PetscReal> Jl;
+    ea.Powers(q, &P_R, &P_I, &Jl);
+    ASSERT_EQ((PetscInt)Jl.size(), p.cells);
+    for (PetscInt c = 0; c < p.cells; ++c) EXPECT_NEAR(Jl[c], J(c), 1e-6 * J.maxCoeff() + 1e-14) << "q/q_sep " << factor << " point " << c;
+    if (factor < 1) EXPECT_EQ(P_I, 0.0); // below the first lift-off nothing separates
+    else EXPECT_NEAR(P_I / P_ref, 1.0, 1e-5) << "q/q_sep " << factor;
+    // The balance holds the losses.
+    const double P_c = 0.5 * q * q * w * w * (test::ToDense(m.phi_re).dot(C * test::ToDense(m.phi_re)) +
+                                              test::ToDense(m.phi_im).dot(C * test::ToDense(m.phi_im)));
+    EXPECT_NEAR(ea.PowerBalance(q), P_R - P_c - P_ref, 1e-6 * (std::abs(P_R) + P_c + P_ref));
+  }
+}
+
+// The losses only lower the balance: q0 with them lies at or below q0 without, and the former
+// estimate stays the default (-energy_impacts false: no P_impacts, the balance P_R - P_c).
+TEST(Energy, ImpactLossesLowerTheBalanceAndCanBeSwitchedOff)
+{
+  for (double V : {3.0, 0.75}) {
+    ThreeDofParams p;
+    p.V = V;
+    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-energy_impacts", "true"), 0);
+    Estimated with(p);
+    ASSERT_EQ(PetscOptionsClearValue(nullptr, "-energy_impacts"), 0);
+    ASSERT_TRUE(with.est.found);
+    ASSERT_TRUE(with.est.impacts);
+    EXPECT_EQ(with.est.impact_steps, 1000); // shooting's default for N = 3
+    Estimated without(p); // the default
+    ASSERT_TRUE(without.est.found);
+    EXPECT_FALSE(without.est.impacts);
+    EXPECT_TRUE(without.est.P_impacts.empty());
+    EXPECT_EQ(without.ea.NormalDelassus().size(), 0);
+    EXPECT_LE(with.est.q0, without.est.q0 * (1 + 1e-12)) << "V = " << V;
+    EXPECT_EQ(with.est.P_impacts.size(), with.est.q.size());
+    // The reference estimate balances P_R and P_c alone.
+    PetscReal P_R, P_I;
+    without.ea.Powers(without.est.q0, &P_R, &P_I);
+    EXPECT_EQ(P_I, 0.0);
+    EXPECT_NEAR(P_R, without.est.P_c0, 1e-9 * without.est.P_c0);
+    EXPECT_NEAR(with.est.P_R0, with.est.P_c0 + with.est.P_I0, 1e-9 * with.est.P_R0);
+    if (PetscGlobalRank == 0) std::printf("V = %g: q0 %.6e (impacts) / %.6e (none), q_sep %.6e, P_I(q0) / P_c(q0) = %.3e\n", V, with.est.q0, without.est.q0,
+                                          with.est.q_sep, with.est.P_I0 / with.est.P_c0);
+  }
 }
