@@ -57,6 +57,12 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
   PetscCall(PetscOptionsBool("-progress", "Progress line with ETA on stderr (default: when stderr is a terminal)",
                              "TransientAnalysis", progress, &progress, &progress_set));
   PetscOptionsEnd();
+  {
+    PetscBool a, b;
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-transient_steps_per_period", &a));
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-transient_h", &b));
+    steps_given = (PetscBool)(a || b);
+  }
   PetscCall(checks.Run(comm_));
   PetscCheck(keep_every >= 1, comm_, kErrInput, "option -transient_keep_every = %" PetscInt_FMT ": expected >= 1", keep_every);
   PetscCheck(settle_periods >= 2, comm_, kErrInput, "option -transient_settle_periods = %" PetscInt_FMT ": expected >= 2", settle_periods);

@@ -398,7 +398,7 @@ TEST(SteadyState, ModalProjectionRecoversTheModalCoordinatesOfANonNormalSystem)
     }
     EXPECT_NEAR(r.variance / (var / m), 1.0, 1e-10);
     EXPECT_NEAR(r.explained, 1 - var_g / var, 1e-10) << "g " << gp;
-    if (gp > 0) EXPECT_LT(r.explained, 0.99); // the orthogonal part is seen
+    if (gp > 0) { EXPECT_LT(r.explained, 0.99); } // the orthogonal part is seen
     EXPECT_GT(r.cond, 1.0);
   }
 }

@@ -119,6 +119,7 @@ public:
   PetscReal settle_tol = 1e-3, max_memory = 0; // max_memory: MiB of records; 0: a quarter of physical memory
   PetscInt  keep_every = 1, mode = -1, monitor = 0, settle_periods = 5;
   PetscBool keep_every_set = PETSC_FALSE;
+  PetscBool steps_given    = PETSC_FALSE; // -transient_steps_per_period or -transient_h on the command line or in the scene
   PetscBool progress = PETSC_FALSE, progress_set = PETSC_FALSE;
   std::vector<PetscReal> u0, du0;
 
