@@ -626,8 +626,8 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
   // shooting above 99 DOFs: a period error (2 pi / 200)^2 / 12 = 8e-5.
   if (!transient.steps_given && N > kDenseStepsMaxDofs && transient.steps_per_period > kFeStepsPerPeriod) {
     transient.steps_per_period = kFeStepsPerPeriod;
-    PetscCall(PetscPrintf(comm_, "steady state: %g steps per period for N = %" PetscInt_FMT " DOFs (-transient_steps_per_period: chosen from the model unless given)\n",
-                          (double)kFeStepsPerPeriod, N));
+    PetscCall(PetscPrintf(comm_, "steady state: %d steps per period for N = %" PetscInt_FMT " DOFs (-transient_steps_per_period: chosen from the model unless given)\n",
+                          (int)kFeStepsPerPeriod, N));
   }
   // The unstable modes' shapes on rank 0, for the modal projection of the records.
   std::vector<std::vector<double>> modes_re, modes_im;
