@@ -145,3 +145,26 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
 }
 
 } // namespace squeal
+
+namespace squeal {
+
+PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P)
+{
+  const Eigen::Index N = ti.GetModel().Size(), n2 = 2 * N;
+  PetscFunctionBeginUser;
+  Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N, n2), ddU = Eigen::MatrixXd::Zero(N, n2);
+  dU.leftCols(N).setIdentity();
+  ddU.rightCols(N).setIdentity();
+  PetscCall(ti.StepTangent(r0, Eigen::VectorXd::Zero(r0.size()), dU, ddU));
+  Eigen::MatrixXd S(n2, n2), tmp(n2, n2);
+  S.topRows(N)    = dU;
+  S.bottomRows(N) = ddU;
+  P               = Eigen::MatrixXd::Identity(n2, n2);
+  for (PetscInt e = steps; e > 0; e >>= 1) {
+    if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
+    if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal

@@ -5,6 +5,7 @@
 // (floquet/floquet.cpp).
 #include "squeal/shooting/shooting.h"
 #include "internal.h"
+#include "squeal/integration/monodromy.h"
 #include "squeal/core/interrupt.h"
 
 #include <algorithm>
@@ -225,23 +226,9 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
   const PetscInt n2 = 2 * N_;
   PetscFunctionBeginUser;
   if (Mlin_.rows() != n2) {
-    // Weakly damped structural modes put many multipliers near the unit circle, spread round it:
-    // unpreconditioned GMRES needs about one iteration each. They are nearly those of the steady
-    // sliding linearisation, whose monodromy costs one step tangent (2N columns at the equilibrium
-    // reactions: every point closed and sliding, slip direction against V_c) and log2(N_s) squarings.
-    Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N_, n2), ddU = Eigen::MatrixXd::Zero(N_, n2);
-    dU.leftCols(N_).setIdentity();
-    ddU.rightCols(N_).setIdentity();
-    const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(r_init_.size());
-    PetscCall(ti_->StepTangent(r_init_, v0, dU, ddU));
-    Eigen::MatrixXd S(n2, n2), P = Eigen::MatrixXd::Identity(n2, n2), tmp(n2, n2);
-    S.topRows(N_)    = dU;
-    S.bottomRows(N_) = ddU;
-    for (PetscInt e = steps; e > 0; e >>= 1) {
-      if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
-      if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
-    }
-    Mlin_.swap(P);
+    // The steady-sliding linearisation's monodromy (integration/monodromy.h), at the equilibrium
+    // reactions: every point closed and sliding, slip direction against V_c.
+    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_));
   }
   // The period column is exact (one tangent integration of one column); the border is the anchor's.
   Eigen::MatrixXd    dT1;

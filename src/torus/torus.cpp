@@ -1,5 +1,6 @@
 // Invariant circle of the stroboscopic map (include/squeal/torus/torus.h, docs/torus.md).
 #include "squeal/torus/torus.h"
+#include "squeal/integration/monodromy.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/gather.h"
 #include "squeal/core/options.h"
@@ -499,18 +500,7 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
       PetscCall(ti.SetUp(model, h));
       h_set = h;
     }
-    Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N, 2 * N), ddU = Eigen::MatrixXd::Zero(N, 2 * N);
-    dU.leftCols(N).setIdentity();
-    ddU.rightCols(N).setIdentity();
-    PetscCall(ti.StepTangent(r0, Eigen::VectorXd::Zero(3 * nc), dU, ddU));
-    Eigen::MatrixXd S(2 * N, 2 * N), P = Eigen::MatrixXd::Identity(2 * N, 2 * N), tmp(2 * N, 2 * N);
-    S.topRows(N)    = dU;
-    S.bottomRows(N) = ddU;
-    for (PetscInt e = nsteps; e > 0; e >>= 1) {
-      if (e & 1) tmp.noalias() = P * S, P.swap(tmp);
-      if (e > 1) tmp.noalias() = S * S, S.swap(tmp);
-    }
-    mono.swap(P);
+    PetscCall(LinearMonodromy(ti, r0, nsteps, mono));
   }
   PetscCall(Solve(flow, s, circle, T0, rho, res, mono.size() ? &mono : nullptr));
   PetscFunctionReturn(0);

@@ -1,0 +1,17 @@
+// The monodromy of the steady-sliding linearisation over one period of steps: shooting's and the
+// torus's linear preconditioners (-shoot_linear_pc, -torus_linear_pc).
+#pragma once
+
+#include "squeal/integration/theta.h"
+
+namespace squeal {
+
+// P = S^steps, S the exact tangent of one step (ti set up at the step wanted) at the reactions r0
+// with every status held (every point closed and sliding: r0 the equilibrium's reactions), on the
+// state (U, dU) of 2N entries: one step tangent of 2N columns and log2(steps) squarings.
+// Weakly damped structural modes put many multipliers near the unit circle, spread round it, where
+// unpreconditioned GMRES needs about one iteration each; these are nearly the multipliers of P.
+// Dense back end only.
+PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P);
+
+} // namespace squeal
