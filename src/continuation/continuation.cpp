@@ -62,7 +62,7 @@ PetscErrorCode Continuation::SetFromOptions()
   PetscCall(PetscOptionsString("-param", "Continuation parameter: mu or v", "Continuation", name, name, sizeof(name), nullptr));
   PetscCall(PetscOptionsReal("-min", "Lower end of the parameter range (default: mu 0, v 0.1)", "Continuation", lmin, &lmin, nullptr));
   PetscCall(PetscOptionsReal("-max", "Upper end of the parameter range (default: mu 0.6, v 10)", "Continuation", lmax, &lmax, nullptr));
-  SquealOptionsReal("-ds", "Initial arclength step (scaled norm: U by ||U0-Ue||, dU by ||dU0||, T by T0, parameter by the range)",
+  SquealOptionsReal("-ds", "Initial arclength step (scaled norm: U by the start cycle's size sqrt(||U0-Ue||^2 + ||dU0||^2/omega^2), dU by omega times it, T by T0, parameter by the range)",
                     "Continuation", &ds, Range::Positive(), checks);
   SquealOptionsReal("-ds_min", "Smallest step: a leg stops when a failed step would go below it", "Continuation", &ds_min,
                     Range::Positive(), checks);
@@ -366,6 +366,15 @@ PetscErrorCode Continuation::Polish(const State &y, ContinuationPoint &pt, State
     why = "no sliding equilibrium at this parameter";
     PetscFunctionReturn(0);
   }
+  if (wU_) { // (not yet for the start point, whose size is 1 in the norm scaled by it)
+    // The cycle's size about this equilibrium in the arclength norm: the leg's steps stay below half
+    // of it (Leg), so the branch is resolved where it shrinks onto the Hopf point.
+    PetscReal nu, ndu;
+    PetscCall(VecWAXPY(wU_, -1.0, eq.U, y.U));
+    PetscCall(VecNorm(wU_, NORM_2, &nu));
+    PetscCall(VecNorm(y.dU, NORM_2, &ndu));
+    radius_ = std::sqrt(nu * nu / (su_ * su_) + ndu * ndu / (sdu_ * sdu_));
+  }
   pt.equilibrium_unstable = -1;
   if (equilibrium) {
     StabilityResult sres;
@@ -552,6 +561,10 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
     last_ratio = -1;
     if (its <= 3) h = std::min(1.5 * h, ds_max);
     else if (its >= 6) h = std::max(0.5 * h, ds_min);
+    // Near the Hopf point the cycle is smaller than ds_max: a step of its own size jumped, on case 1
+    // from the impact-aware start, from 1.06e-3 m sliding throughout (mu - mu_c = 1.6e-4) to the
+    // separated cycles above lift-off, and the leg walked back up to mu = 0.5.
+    h = std::max(std::min(h, 0.1 * radius_), ds_min);
   }
   PetscFunctionReturn(0);
 }
@@ -611,10 +624,17 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     VecH d;
     PetscCall(VecDuplicate(s0.U, d.out()));
     PetscCall(VecWAXPY(d, -1.0, eq.U, s0.U));
-    PetscCall(VecNorm(d, NORM_2, &su_));
-    PetscCall(VecNorm(s0.dU, NORM_2, &sdu_));
-    if (!(su_ > 0)) su_ = 1;
-    if (!(sdu_ > 0)) sdu_ = 1;
+    // Scales that do not depend on where on the orbit the start sits: for a motion near one
+    // harmonic, ||U - Ue||^2 + ||dU||^2 / omega^2 is the same at every phase; ||U0 - Ue|| and ||dU0||
+    // alone are not (the impact-aware energy estimate's start on case 1 lands elsewhere on the
+    // orbit than the former one, and the norm, hence the steps, changed with it).
+    PetscReal nu, ndu;
+    PetscCall(VecNorm(d, NORM_2, &nu));
+    PetscCall(VecNorm(s0.dU, NORM_2, &ndu));
+    const PetscReal omega = 2 * PETSC_PI / s0.T;
+    su_                   = std::sqrt(nu * nu + ndu * ndu / (omega * omega));
+    sdu_                  = omega * su_;
+    if (!(su_ > 0)) su_ = 1, sdu_ = 1;
     // The parameter's scale in the arclength: the range's width, but no wider than the default
     // range (with -cont_max 1e6 the first step of ds = 0.05 jumped 5e4 m/s, to the range's end).
     sT_ = s0.T, sl_ = std::min(lmax - lmin, param == "mu" ? (PetscReal)0.6 : (PetscReal)10.0);

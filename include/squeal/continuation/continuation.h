@@ -160,6 +160,7 @@ private:
   ThetaIntegrator   *ti_    = nullptr;
   Shooting          *shoot_ = nullptr;
   PetscReal          su_ = 1, sdu_ = 1, sT_ = 1, sl_ = 1; // scales of the arclength norm
+  PetscReal          radius_ = 1; // the last polished cycle's size about its equilibrium, in that norm
   PetscInt           step_count_ = 0, halvings_ = 0, flows_ = 0;
   bool               interrupted_ = false;
   std::vector<State> states_; // per point of the branch, for the secants and the bisections
