@@ -294,7 +294,9 @@ TEST(Shooting, TrivialMultiplierMissComesFromTheDiscreteMapsEventSteps)
       lo_dev = std::min(lo_dev, dev), hi_dev = std::max(hi_dev, dev);
       if (Rank0()) std::printf("  N_s = %d: secant over [0, s d], s = %-6g: misses d by %.2e |d|\n", (int)steps, s, dev);
     }
-    EXPECT_LT(hi_dev, 1e-2);
+    // The miss depends on where on the orbit Z0 sits (the impact's step relative to it): 5.3e-4 to
+    // 1.2e-2 from the impact-aware energy estimate's start, under 1e-2 from the former one.
+    EXPECT_LT(hi_dev, 3e-2);
     spread_at.push_back(hi_dev - lo_dev);
     for (Vec *w : {&U0, &dU0, &U, &dU, &U1, &dU1}) VecDestroy(w);
   }
@@ -446,7 +448,12 @@ TEST(Shooting, RectilinearCycleNamesTheTwoCycleAndConvergesWithADampedNewton)
     EXPECT_NEAR(sr.period / 0.0111794, 1.0, 1e-4);
   }
   {
-    Problem        pr(p);
+    // From the energy estimate without impact losses: the finite-difference
+    // Newton's two-cycle is that start's. From the impact-aware one (closer to the cycle) plain
+    // Newton converges with finite differences too.
+    PetscOptionsSetValue(nullptr, "-energy_impacts", "0");
+    Problem pr(p);
+    PetscOptionsClearValue(nullptr, "-energy_impacts");
     pr.sh.exact_jacobian = PETSC_FALSE;
     ShootingResult sr;
     PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
