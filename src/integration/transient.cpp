@@ -112,7 +112,7 @@ class StatusOf {
 public:
   StatusOf(const ContactSet &cs, const LocalContactSolver &ls) : cs_(cs), ls_(ls) {}
   template <class Int>
-  void operator()(const Eigen::VectorXd &r, Int *status)
+  EIGEN_ALWAYS_INLINE void operator()(const Eigen::VectorXd &r, Int *status)
   {
     const Eigen::Index nc          = r.size() / 3;
     const bool         rectilinear = cs_.law == FrictionLaw::Rectilinear;
