@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <type_traits>
 #include <unistd.h>
 
 namespace squeal {
@@ -111,7 +112,7 @@ class StatusOf {
 public:
   StatusOf(const ContactSet &cs, const LocalContactSolver &ls) : cs_(cs), ls_(ls) {}
   template <class Int>
-  void operator()(const Eigen::VectorXd &r, Int *status)
+  EIGEN_ALWAYS_INLINE void operator()(const Eigen::VectorXd &r, Int *status)
   {
     const Eigen::Index nc          = r.size() / 3;
     const bool         rectilinear = cs_.law == FrictionLaw::Rectilinear;
@@ -184,6 +185,111 @@ private:
   const PetscReal                       h_;
   std::chrono::steady_clock::time_point start_, last_;
 };
+
+
+// What Run's loop reads and updates besides the state.
+struct LoopContext {
+  MPI_Comm                 comm;
+  const ThetaIntegrator   &ti;
+  TransientResult         &res;
+  transient::Bookkeeping  &book;
+  StatusOf                &status_of;
+  Progress                &progress_line;
+  const PetscInt           nsteps, monitor;
+  const bool               show_prog;
+  PetscInt                 fp_total = 0, nan_step = -1;
+};
+
+// The steps, with the works after each and the records and monitor lines. step(info) takes one step
+// of the state (U, dU in u, du on one rank) and r. Dense: the dense ledger of the step kernel's
+// fixed sizes on one rank, whose works and records are then inlined here (totals, statuses and
+// stores into rank 0's record slots, as Event and Bookkeeping::Record would do them, in the same
+// order of operations); null: the ledger's virtual calls and Event. Monitor lines take Event either way.
+template <class Dense, class StepFn>
+PetscErrorCode Loop(LoopContext &c, StepFn &&step, Dense dense, const PetscReal *u, const PetscReal *du, Eigen::VectorXd &r,
+                    PetscErrorCode *ierr)
+{
+  constexpr bool     kDense = !std::is_same_v<Dense, std::nullptr_t>;
+  const PetscInt     nsteps = c.nsteps, keep = c.res.keep_every, monitor = c.monitor;
+  const PetscReal    h      = c.res.h;
+  const bool         contact = r.size() > 0;
+  transient::Ledger *led    = c.book.GetLedger();
+  StepInfo           info;
+  PetscInt           fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT;
+  PetscFunctionBeginUser;
+  for (PetscInt i = 1; i <= nsteps; ++i) {
+    *ierr = step(info);
+    if (*ierr) break;
+    if (contact) {
+      if (std::isnan(info.contact.residual)) {
+        c.nan_step = i;
+        break;
+      }
+      if (!info.contact.converged) PetscCall(Capped(c.comm, c.ti, info, i, h, c.res.summary));
+    }
+    fp_total += info.contact.iterations;
+    if constexpr (kDense) dense->WorkAt(u, r.data());
+    else PetscCall(led->Work(r));
+    const bool rec = --to_record == 0 || i == nsteps, mon = --to_monitor == 0;
+    if (rec || mon) {
+      bool nan = false;
+      if constexpr (kDense) {
+        if (!mon) {
+        PetscReal tot[5];
+        dense->TotalsAt(u, du, tot);
+        nan = !std::isfinite(tot[0] + tot[1]);
+        if (!nan) {
+          const transient::Bookkeeping::Slot s = c.book.Next();
+          *s.t                                  = i * h;
+          dense->CopyAt(u, du, r.data(), s.U, s.V, s.R);
+          c.status_of(r, s.status);
+          s.energy[0] = tot[0] + tot[1], s.energy[1] = tot[2], s.energy[2] = tot[3], s.energy[3] = tot[4];
+          c.book.Commit();
+        }
+        } else PetscCall(Event(c.book, c.status_of, i, h, rec, mon, info.contact.iterations, r, &nan));
+      } else PetscCall(Event(c.book, c.status_of, i, h, rec, mon, info.contact.iterations, r, &nan));
+      if (nan) {
+        c.nan_step = i;
+        break;
+      }
+      if (rec) to_record = keep;
+      if (mon) to_monitor = monitor;
+    }
+    c.res.steps = i;
+    if (c.show_prog && (i % 64 == 0 || i == nsteps)) c.progress_line(i); // the clock read every 64 steps only
+    bool stop = false; // SIGINT/SIGTERM: leave, records so far are written (every 32 steps: a reduction on >1 rank)
+    if (i % 32 == 0) PetscCall(InterruptRequested(c.comm, &stop));
+    if (stop) break;
+  }
+  c.fp_total = fp_total;
+  PetscFunctionReturn(0);
+}
+
+// Run's loop on one rank for the step kernel's fixed sizes (N, NC), if the kernel and the ledger are
+// those: the kernel called directly on the state arrays (not through ThetaIntegrator::Step and the
+// Vecs, whose state is increased once after the loop as VecRestoreArray would), the works and
+// records inlined. *done: taken.
+template <int N, int NC>
+PetscErrorCode DenseLoop(LoopContext &c, Vec U, Vec dU, PetscReal *u, PetscReal *du, Eigen::VectorXd &r, PetscErrorCode *ierr, bool *done)
+{
+  PetscFunctionBeginUser;
+  auto *kern = dynamic_cast<DenseStepKernelT<N, NC> *>(c.ti.OneRankKernel());
+  auto *led  = dynamic_cast<transient::DenseLedger<N, NC> *>(c.book.GetLedger());
+  *done      = kern && led && u && du;
+  if (!*done) PetscFunctionReturn(0);
+  const auto step = [&](StepInfo &info) -> PetscErrorCode {
+    kern->Step(u, du, r, &info.contact);
+    return 0;
+  };
+  const PetscErrorCode e = Loop(c, step, led, u, du, r, ierr);
+  for (Vec x : {U, dU}) { // the state increase of VecRestoreArray (public API)
+    PetscScalar *a;
+    PetscCall(VecGetArray(x, &a));
+    PetscCall(VecRestoreArray(x, &a));
+  }
+  PetscCall(e);
+  PetscFunctionReturn(0);
+}
 
 } // namespace
 
@@ -316,45 +422,20 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
 
   const bool     show_prog = rank == 0 && (progress_set ? (bool)progress : isatty(STDERR_FILENO));
   Progress       progress_line(nsteps, res.h);
-  StepInfo       info;
-  PetscErrorCode ierr     = 0;
-  PetscInt       nan_step = -1;
+  PetscErrorCode ierr = 0;
+  LoopContext    c{comm_, ti, res, book, status_of, progress_line, nsteps, monitor, show_prog};
 
   // The loop keeps to locals the compiler can hold in registers; everything else is in the
   // functions above and in the bookkeeping, called at the records, monitor lines and rare events only.
-  transient::Ledger *led = book.GetLedger();
-  Vec                Uv = U, dUv = dU;
-  const PetscInt     keep = res.keep_every;
-  PetscInt           fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT;
-  for (PetscInt i = 1; i <= nsteps; ++i) {
-    ierr = ti.Step(Uv, dUv, r, &info);
-    if (ierr) break;
-    if (nc > 0) {
-      if (std::isnan(info.contact.residual)) {
-        nan_step = i;
-        break;
-      }
-      if (!info.contact.converged) PetscCall(Capped(comm_, ti, info, i, res.h, res.summary));
-    }
-    fp_total += info.contact.iterations;
-    PetscCall(led->Work(r));
-    const bool rec = --to_record == 0 || i == nsteps, mon = --to_monitor == 0;
-    if (rec || mon) {
-      bool nan;
-      PetscCall(Event(book, status_of, i, res.h, rec, mon, info.contact.iterations, r, &nan));
-      if (nan) {
-        nan_step = i;
-        break;
-      }
-      if (rec) to_record = keep;
-      if (mon) to_monitor = monitor;
-    }
-    res.steps = i;
-    if (show_prog && (i % 64 == 0 || i == nsteps)) progress_line(i); // the clock read every 64 steps only
-    bool stop = false; // SIGINT/SIGTERM: leave, records so far are written (every 32 steps: a reduction on >1 rank)
-    if (i % 32 == 0) PetscCall(InterruptRequested(comm_, &stop));
-    if (stop) break;
+  bool done = false;
+  if (size == 1) PetscCall(DenseLoop<3, 1>(c, U, dU, us.data(), dus.data(), r, &ierr, &done));
+  if (size == 1 && !done) PetscCall(DenseLoop<12, 4>(c, U, dU, us.data(), dus.data(), r, &ierr, &done));
+  if (!done) {
+    Vec        Uv = U, dUv = dU;
+    const auto step = [&](StepInfo &info) { return ti.Step(Uv, dUv, r, &info); };
+    PetscCall(Loop(c, step, nullptr, nullptr, nullptr, r, &ierr));
   }
+  const PetscInt fp_total = c.fp_total, nan_step = c.nan_step;
   book.Cut();
   res.summary.mean_fp_iterations = res.steps ? (PetscReal)fp_total / res.steps : 0;
   if (rank == 0) Summarise(res, settle_tol, settle_periods);

@@ -43,6 +43,167 @@ protected:
   PetscInt n_ = 0;
 };
 
+// Loops of compile-time length unrolled in full: GCC's -O2 keeps a 3-iteration loop, at several
+// times the instructions of its body on 3 x 3 data (run-time lengths are unrolled in blocks).
+#if defined(__clang__)
+  #define SQUEAL_UNROLL _Pragma("clang loop unroll_count(16)")
+#elif defined(__GNUC__)
+  #define SQUEAL_UNROLL _Pragma("GCC unroll 16")
+#else
+  #define SQUEAL_UNROLL
+#endif
+
+// One rank, dense back end, the sizes the step kernel is compiled for (integration/step_kernel.h):
+// the state lives in arrays that the integrator updates in place (Vecs over them, see Run), and the
+// bookkeeping reads them as a hand-written loop would, with dense copies of M, C, K (row-major), F
+// and H^T and loops of compile-time length: no PETSc call per step. Products row by row and sums
+// in index order, as PETSc's MatMult and VecDot (round-off apart: FMA). Any other model takes
+// VecLedger: dense N x N products per step cost far more than sparse ones for larger N (a 180-DOF
+// chain's transient took 12.4 s against 5.1 s). Here, not in transient_ledger.cpp, so that Run's
+// loop for these sizes (transient.cpp) inlines WorkAt and TotalsAt: the virtual Work and Totals
+// cost a call, a frame and the reloads of every member per step.
+template <int N, int NC>
+class DenseLedger final : public Ledger {
+  static constexpr int M = NC == Eigen::Dynamic ? Eigen::Dynamic : 3 * NC;
+  using MatN             = Eigen::Matrix<PetscReal, N, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
+  using MatH             = Eigen::Matrix<PetscReal, M, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
+  using VecN             = Eigen::Matrix<PetscReal, N, 1>;
+
+public:
+  DenseLedger(const Model &model, const PetscReal *u, const PetscReal *du, PetscReal h)
+    : nc_(model.contacts.Size()), h_(h), damped_(model.HasDamping()), u_(u), du_(du)
+  {
+    n_ = model.Size();
+    M_ = DenseOf(model.M);
+    C_ = damped_ ? DenseOf(model.C) : MatN::Zero(n_, n_);
+    K_ = DenseOf(model.K);
+    Ht_.setZero(3 * nc_, n_);
+    for (PetscInt c = 0; c < nc_; ++c)
+      for (int d = 0; d < 3; ++d) model.contacts.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) { Ht_(3 * c + d, j) += v; });
+    F_.resize(n_);
+    const PetscScalar *f;
+    PetscCallAbort(PETSC_COMM_SELF, VecGetArrayRead(model.F, &f));
+    for (PetscInt i = 0; i < n_; ++i) F_[i] = PetscRealPart(f[i]);
+    PetscCallAbort(PETSC_COMM_SELF, VecRestoreArrayRead(model.F, &f));
+    diag_m_ = IsDiagonal(M_), diag_c_ = IsDiagonal(C_);
+    prev_  = Eigen::Map<const VecN>(u_, n_);
+    start_ = prev_;
+    dq_.resize(n_);
+  }
+
+  PetscErrorCode Work(const Eigen::VectorXd &r) override
+  {
+    WorkAt(u_, r.data());
+    return 0;
+  }
+  PetscErrorCode Totals(PetscReal s[5]) override
+  {
+    TotalsAt(u_, du_, s);
+    return 0;
+  }
+
+  // The works of the step that ended at state u with reactions r (Work on any state array).
+  EIGEN_ALWAYS_INLINE void WorkAt(const PetscReal *u, const PetscReal *r)
+  {
+    const PetscInt n = Size(), m = 3 * NcSize();
+    VecN           dq_l;
+    PetscReal     *dq = N == Eigen::Dynamic ? dq_.data() : dq_l.data();
+    SQUEAL_UNROLL
+    for (PetscInt i = 0; i < n; ++i) dq[i] = u[i] - prev_[i], prev_[i] = u[i]; // h ub
+    if (damped_) damping_ += (diag_c_ ? Diagonal(C_, dq) : Quadratic(C_, dq)) / h_;
+    PetscReal wr = 0;
+    SQUEAL_UNROLL
+    for (PetscInt k = 0; k < m; ++k) wr += Row(Ht_, k, dq) * r[k];
+    reactions_ += wr;
+  }
+
+  // Totals at the state (u, du).
+  EIGEN_ALWAYS_INLINE void TotalsAt(const PetscReal *u, const PetscReal *du, PetscReal s[5]) const
+  {
+    const PetscInt n  = Size();
+    PetscReal      wf = 0;
+    SQUEAL_UNROLL
+    for (PetscInt i = 0; i < n; ++i) wf += F_[i] * (u[i] - start_[i]);
+    s[0] = 0.5 * (diag_m_ ? Diagonal(M_, du) : Quadratic(M_, du));
+    s[1] = 0.5 * Quadratic(K_, u);
+    s[2] = damping_, s[3] = reactions_, s[4] = wf;
+  }
+
+  void Copy(const PetscReal *u, const PetscReal *du, const Eigen::VectorXd &r, PetscReal *U, PetscReal *V, PetscReal *R) override
+  {
+    CopyAt(u, du, r.data(), U, V, R);
+  }
+  EIGEN_ALWAYS_INLINE void CopyAt(const PetscReal *u, const PetscReal *du, const PetscReal *r, PetscReal *U, PetscReal *V, PetscReal *R) const
+  {
+    const PetscInt n = Size(), m = 3 * NcSize();
+    SQUEAL_UNROLL
+    for (PetscInt i = 0; i < n; ++i) U[i] = u[i], V[i] = du[i];
+    SQUEAL_UNROLL
+    for (PetscInt k = 0; k < m; ++k) R[k] = r[k];
+  }
+
+private:
+  PetscInt Size() const { return N == Eigen::Dynamic ? n_ : N; }
+  PetscInt NcSize() const { return NC == Eigen::Dynamic ? nc_ : NC; }
+  template <class A>
+  EIGEN_ALWAYS_INLINE PetscReal Row(const A &a, PetscInt i, const PetscReal *x) const
+  {
+    const PetscInt n = Size();
+    PetscReal      s = 0;
+    SQUEAL_UNROLL
+    for (PetscInt j = 0; j < n; ++j) s += a(i, j) * x[j];
+    return s;
+  }
+  EIGEN_ALWAYS_INLINE PetscReal Quadratic(const MatN &a, const PetscReal *x) const // x^T a x
+  {
+    const PetscInt n = Size();
+    PetscReal      s = 0;
+    SQUEAL_UNROLL
+    for (PetscInt i = 0; i < n; ++i) s += x[i] * Row(a, i, x);
+    return s;
+  }
+  // x^T a x for a diagonal a: Quadratic's sums without its products by the zeros, which change no
+  // finite sum (fma(0, x, s) = s), so the same number in a third of the instructions (M and C of the
+  // 3-DOF model are m I and c I).
+  EIGEN_ALWAYS_INLINE PetscReal Diagonal(const MatN &a, const PetscReal *x) const
+  {
+    const PetscInt n = Size();
+    PetscReal      s = 0;
+    SQUEAL_UNROLL
+    for (PetscInt i = 0; i < n; ++i) s += x[i] * (a(i, i) * x[i]);
+    return s;
+  }
+  static bool IsDiagonal(const MatN &a)
+  {
+    for (Eigen::Index i = 0; i < a.rows(); ++i)
+      for (Eigen::Index j = 0; j < a.cols(); ++j)
+        if (i != j && a(i, j) != 0) return false;
+    return true;
+  }
+  MatN DenseOf(Mat A) const
+  {
+    MatN D = MatN::Zero(n_, n_);
+    for (PetscInt i = 0; i < n_; ++i) {
+      PetscInt           nz;
+      const PetscInt    *cj;
+      const PetscScalar *v;
+      PetscCallAbort(PETSC_COMM_SELF, MatGetRow(A, i, &nz, &cj, &v));
+      for (PetscInt k = 0; k < nz; ++k) D(i, cj[k]) = PetscRealPart(v[k]);
+      PetscCallAbort(PETSC_COMM_SELF, MatRestoreRow(A, i, &nz, &cj, &v));
+    }
+    return D;
+  }
+
+  const PetscInt   nc_;
+  const PetscReal  h_;
+  const bool       damped_;
+  bool             diag_m_ = false, diag_c_ = false; // M, C diagonal: Diagonal for Quadratic
+  const PetscReal *u_, *du_;
+  MatN             M_, C_, K_;
+  MatH             Ht_;
+  VecN             F_, prev_, start_, dq_;
+};
+
 // The ledger of a run: with u, du (one rank, the arrays behind U and dU) and a fixed-size step
 // kernel, the dense ledger for the kernel's sizes when there is one; else the one on Vecs.
 PetscErrorCode CreateLedger(const Model &model, const PetscReal *u, const PetscReal *du, bool fixed_size, Vec U, Vec dU, PetscReal h,
@@ -100,6 +261,20 @@ public:
   // The monitor line after step i, which took fp_its fixed-point passes (the last totals).
   PetscErrorCode Monitor(PetscInt i, PetscInt fp_its) const;
   void           Cut() { recs_.Cut(); }
+  // Rank 0: the next record's slots, filled by the caller (Run's loop for the dense ledger's
+  // sizes), then Commit() (the statuses and energies as Record would write them).
+  struct Slot {
+    PetscReal *t, *U, *V, *R, *energy;
+    PetscInt  *status;
+  };
+  Slot Next()
+  {
+    const size_t k = recs_.n;
+    const PetscInt N = recs_.N, nc = recs_.nc;
+    return {res_.t.data() + k, res_.U.data() + k * N, res_.V.data() + k * N, res_.R.data() + k * 3 * nc, res_.energy.data() + 4 * k,
+            res_.status.data() + k * nc};
+  }
+  void Commit() { recs_.n++; }
 
 private:
   MPI_Comm                comm_;

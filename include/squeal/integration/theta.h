@@ -111,6 +111,9 @@ public:
   PetscReal                 StepSize() const { return h_; }
   bool                      Dense() const { return dense_; }
   bool                      FixedSizeKernel() const { return kernel_ && kernel_->FixedSize(); }
+  // The dense step kernel on one rank (else null), for callers that hold the state in arrays of their
+  // own and step them without a Vec (the transient's loop): Step on Vecs over those arrays does the same.
+  DenseStepKernel          *OneRankKernel() const { return dense_ && size_ == 1 ? kernel_.get() : nullptr; }
   const Eigen::MatrixXd    &Delassus() const { return W_; } // empty when SparseDelassus()
   bool                      SparseDelassus() const { return sparse_w_; }
   const Eigen::SparseMatrix<PetscReal> &DelassusSparse() const { return Ws_; }
