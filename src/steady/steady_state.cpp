@@ -35,7 +35,7 @@ PetscErrorCode SteadyState::SetFromOptions()
   SquealOptionsReal("-max_periods", "Budget: at most this many periods of the starting mode in all", "SteadyState", &max_periods,
                     Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-dof", "DOF whose levels and spectrum are computed (-1: the one the transient's cycle summary reads, "
-                                    "the DOF that moves most)",
+                                    "the DOF that moves most, for which the first chunk keeps its displacements; given: no state is kept)",
                             "SteadyState", dof, &dof, nullptr));
   PetscCall(PetscOptionsBool("-from_mode",
                              "-analyses auto's statistical route starts from the mode (as the transient; false: from the pre-periods' end state)",
