@@ -158,7 +158,7 @@ PetscErrorCode Event(transient::Bookkeeping &book, StatusOf &status_of, PetscInt
   *nan = !book.Finite();
   if (*nan) PetscFunctionReturn(0);
   status_of(r, book.Status());
-  if (rec) PetscCall(book.Record(t, r));
+  if (rec) PetscCall(book.Record(i, t, r));
   if (mon) PetscCall(book.Monitor(i, fp_its));
   PetscFunctionReturn(0);
 }
@@ -327,7 +327,8 @@ PetscErrorCode TransientAnalysis::RecordCount(PetscInt N, PetscInt nc, PetscInt 
     budget           = pages > 0 && page > 0 ? 0.25 * (PetscReal)pages * (PetscReal)page : 4.0 * 1073741824.0;
   }
   PetscCallMPI(MPI_Bcast(&budget, 1, MPIU_REAL, 0, comm_)); // rank 0 holds the records: its memory counts
-  const PetscReal per   = RecordBytes(N, nc);
+  // Streamed: t and the energies here, and what the consumer keeps.
+  const PetscReal per   = res.streamed ? 5 * sizeof(PetscReal) + on_record_bytes : RecordBytes(N, nc);
   const PetscReal need  = per * (PetscReal)(nsteps / keep_every + 2);
   if (need > budget) {
     PetscCheck(!keep_every_set, comm_, kErrInput,
@@ -343,8 +344,12 @@ PetscErrorCode TransientAnalysis::RecordCount(PetscInt N, PetscInt nc, PetscInt 
     res.keep_every = k;
   } else res.keep_every = keep_every;
   *records = nsteps / res.keep_every + 2;
-  PetscCall(PetscPrintf(comm_, "transient: %" PetscInt_FMT " steps, %" PetscInt_FMT " records: %.1f MiB in memory (rank 0) and in the file\n",
-                        nsteps, *records, (double)(per * *records / 1048576.0)));
+  if (res.streamed)
+    PetscCall(PetscPrintf(comm_, "transient: %" PetscInt_FMT " steps, %" PetscInt_FMT " records analysed as they come: %.1f MiB kept (rank 0), no full states\n",
+                          nsteps, *records, (double)(per * *records / 1048576.0)));
+  else
+    PetscCall(PetscPrintf(comm_, "transient: %" PetscInt_FMT " steps, %" PetscInt_FMT " records: %.1f MiB in memory (rank 0) and in the file\n",
+                          nsteps, *records, (double)(per * *records / 1048576.0)));
   PetscFunctionReturn(0);
 }
 
@@ -372,7 +377,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   PetscCallMPI(MPI_Comm_size(comm_, &size));
   res = TransientResult{};
-  transient::Bookkeeping book(comm_, res, N, nc); // before anything that may return: the records are cut on the way out
+  transient::Bookkeeping book(comm_, res, N, nc, on_record); // before anything that may return: the records are cut on the way out
   res.N  = N;
   res.nc = nc;
 
@@ -385,6 +390,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   // Without a period, -transient_periods counts blocks of -transient_steps_per_period steps.
   const PetscReal tf     = t_final > 0 ? t_final : (res.T_ref > 0 ? periods * res.T_ref : periods * steps_per_period * res.h);
   const PetscInt  nsteps = (PetscInt)std::ceil(tf / res.h - 1e-9);
+  res.steps_planned      = nsteps;
   PetscInt        records;
   PetscCall(RecordCount(N, nc, nsteps, res, &records));
   if (rank == 0) book.SizeRecords(records);
@@ -438,7 +444,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   const PetscInt fp_total = c.fp_total, nan_step = c.nan_step;
   book.Cut();
   res.summary.mean_fp_iterations = res.steps ? (PetscReal)fp_total / res.steps : 0;
-  if (rank == 0) Summarise(res, settle_tol, settle_periods);
+  if (rank == 0 && !res.streamed) Summarise(res, settle_tol, settle_periods);
   res.complete = !ierr && nan_step < 0 && res.steps == nsteps;
   PetscCall(ierr);
   PetscCheck(nan_step < 0, comm_, PETSC_ERR_FP, "transient: NaN or overflow at step %" PetscInt_FMT ", t = %g s (h = %g s); %zu records kept",

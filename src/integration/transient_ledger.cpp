@@ -146,7 +146,7 @@ PetscErrorCode Bookkeeping::SetUp(const Model &model, bool fixed_size, Vec U, Ve
   status_.assign(model.contacts.Size(), kSlip);
   PetscCall(Totals());
   E0_ = tot_[0] + tot_[1];
-  PetscCall(Record(0.0, r));
+  PetscCall(Record(0, 0.0, r));
   PetscFunctionReturn(0);
 }
 
@@ -158,24 +158,30 @@ PetscErrorCode Bookkeeping::Totals()
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Bookkeeping::Record(PetscReal t, const Eigen::VectorXd &r)
+PetscErrorCode Bookkeeping::Record(PetscInt step, PetscReal t, const Eigen::VectorXd &r)
 {
   const PetscInt   N = recs_.N, nc = recs_.nc;
   TransientResult &res = res_;
   PetscFunctionBeginUser;
-  const size_t k = recs_.n;
+  const size_t k = recs_.n, s = recs_.Slot(k);
   if (size_ > 1) {
-    PetscCall(Gather(sc_, U_, z_, res.U.data() + k * N));
-    PetscCall(Gather(sc_, dU_, z_, res.V.data() + k * N));
-    if (rank_ == 0) std::copy_n(r.data(), 3 * nc, res.R.data() + k * 3 * nc);
-  } else ledger_->Copy(u_, du_, r, res.U.data() + k * N, res.V.data() + k * N, res.R.data() + k * 3 * nc);
+    PetscCall(Gather(sc_, U_, z_, res.U.data() + s * N));
+    PetscCall(Gather(sc_, dU_, z_, res.V.data() + s * N));
+    if (rank_ == 0) std::copy_n(r.data(), 3 * nc, res.R.data() + s * 3 * nc);
+  } else ledger_->Copy(u_, du_, r, res.U.data() + s * N, res.V.data() + s * N, res.R.data() + s * 3 * nc);
   if (rank_ == 0) {
     res.t[k]        = t;
-    PetscInt *st    = res.status.data() + k * nc;
+    PetscInt *st    = res.status.data() + s * nc;
     for (PetscInt c = 0; c < nc; ++c) st[c] = status_[c];
     PetscReal *e = res.energy.data() + 4 * k;
     e[0] = tot_[0] + tot_[1], e[1] = tot_[2], e[2] = tot_[3], e[3] = tot_[4];
     recs_.n++;
+    if (hook_) {
+      TransientRecord rec;
+      rec.index = k, rec.step = step, rec.t = t, rec.energy = e, rec.status = st;
+      rec.U = res.U.data() + s * N, rec.V = res.V.data() + s * N, rec.R = res.R.data() + s * 3 * nc;
+      PetscCall(hook_(res, rec));
+    }
   }
   PetscFunctionReturn(0);
 }

@@ -11,7 +11,9 @@
 
 #include "squeal/integration/transient.h"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -211,6 +213,7 @@ PetscErrorCode CreateLedger(const Model &model, const PetscReal *u, const PetscR
 
 // The records on rank 0, sized for the whole run before it starts (a record is then a few stores,
 // with no growth test per value) and cut to the records written when Run leaves, by any path.
+// Streamed (res.streamed): t and energy for every record, the state arrays for one, overwritten.
 struct RecordSink {
   TransientResult &res;
   const PetscInt   N, nc;
@@ -227,13 +230,16 @@ struct RecordSink {
   {
     if (on) Resize(n);
   }
-  void Resize(size_t records)
+  // Where record k's state goes.
+  size_t Slot(size_t k) const { return res.streamed ? 0 : k; }
+  void   Resize(size_t records)
   {
+    const size_t states = res.streamed ? std::min<size_t>(records, 1) : records;
     res.t.resize(records);
-    res.U.resize(records * N);
-    res.V.resize(records * N);
-    res.R.resize(records * 3 * nc);
-    res.status.resize(records * nc);
+    res.U.resize(states * N);
+    res.V.resize(states * N);
+    res.R.resize(states * 3 * nc);
+    res.status.resize(states * nc);
     res.energy.resize(records * 4);
   }
 };
@@ -244,8 +250,15 @@ struct RecordSink {
 // (Status(): the points' statuses that the next record takes).
 class Bookkeeping {
 public:
-  // Before anything in Run that may return: the records are cut on the way out.
-  Bookkeeping(MPI_Comm comm, TransientResult &res, PetscInt N, PetscInt nc) : comm_(comm), res_(res), recs_(res, N, nc) {}
+  using Hook = std::function<PetscErrorCode(const TransientResult &, const TransientRecord &)>;
+  // Before anything in Run that may return: the records are cut on the way out. on_record
+  // (TransientAnalysis::on_record, may be empty): each record is handed to it on rank 0, and res
+  // keeps the state of the last one only.
+  Bookkeeping(MPI_Comm comm, TransientResult &res, PetscInt N, PetscInt nc, const Hook &on_record)
+    : comm_(comm), res_(res), recs_(res, N, nc), hook_(on_record)
+  {
+    res.streamed = (bool)on_record;
+  }
   // Rank 0: room for this many records.
   void SizeRecords(size_t records) { recs_.Size(records); }
   // The ledger (see CreateLedger) from the state at the start, its energy E0, and record 0 (every
@@ -256,8 +269,8 @@ public:
   PetscErrorCode Totals();
   bool           Finite() const { return std::isfinite(tot_[0] + tot_[1]); }
   int           *Status() { return status_.data(); }
-  // The current state, reactions r, the statuses and the last totals as the record at time t.
-  PetscErrorCode Record(PetscReal t, const Eigen::VectorXd &r);
+  // The current state after `step` steps, reactions r, the statuses and the last totals as the record at time t.
+  PetscErrorCode Record(PetscInt step, PetscReal t, const Eigen::VectorXd &r);
   // The monitor line after step i, which took fp_its fixed-point passes (the last totals).
   PetscErrorCode Monitor(PetscInt i, PetscInt fp_its) const;
   void           Cut() { recs_.Cut(); }
@@ -280,6 +293,7 @@ private:
   MPI_Comm                comm_;
   TransientResult        &res_;
   RecordSink              recs_;
+  const Hook             &hook_;
   PetscMPIInt             rank_ = 0, size_ = 1;
   std::unique_ptr<Ledger> ledger_;
   std::vector<int>        status_;

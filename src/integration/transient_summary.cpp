@@ -78,8 +78,10 @@ void FitLine(const std::vector<PetscReal> &y, PetscReal &slope, PetscReal &scatt
 // Everything is read over the last 20 % of the records (from on).
 class CycleReader {
 public:
-  explicit CycleReader(const TransientResult &res)
-    : res_(res), nr_(res.t.size()), N_(res.N), from_(nr_ - std::max<size_t>(nr_ / 5, 2)),
+  // The window: records from..nr-1 (by default the last 20 %).
+  explicit CycleReader(const TransientResult &res) : CycleReader(res, res.t.size() - std::max<size_t>(res.t.size() / 5, 2)) {}
+  CycleReader(const TransientResult &res, size_t from)
+    : res_(res), nr_(res.t.size()), N_(res.N), from_(from),
       has_v_(res.V.size() >= nr_ * N_) // without velocities the interpolant is the chord
   {
   }
@@ -354,6 +356,15 @@ void Levels(const TransientResult &res, size_t from, TransientSummary &s)
 }
 
 } // namespace
+
+PetscInt TransientAnalysis::SignalDof(const TransientResult &window)
+{
+  const size_t nr = window.t.size();
+  if (nr < 2 || window.N < 1 || window.U.size() < nr * window.N) return -1;
+  TransientSummary s;
+  CycleReader(window, 0).Signal(s);
+  return s.signal_dof;
+}
 
 void TransientAnalysis::Summarise(TransientResult &res, PetscReal settle_tol, PetscInt settle_periods)
 {

@@ -471,7 +471,8 @@ void ModalProjection::Add(const double *u, size_t n, size_t first)
     if (e_.empty()) ref_ = ui, sum_ = Eigen::VectorXd::Zero(N);
     if (e_.size() % every_ == 0) checkpoints_.push_back(sum_);
     const Eigen::VectorXd y = ui - ref_;
-    z_.push_back(Q_.transpose() * y);
+    const Eigen::VectorXd z = Q_.transpose() * y;
+    z_.insert(z_.end(), z.data(), z.data() + z.size());
     e_.push_back(y.squaredNorm());
     sum_ += y;
   }
@@ -492,7 +493,7 @@ ModalProjection::Result ModalProjection::Analyse(size_t cut) const
   const Eigen::VectorXd ubar = (sum_ - checkpoints_[c]) / m;
   double                ee   = 0;
   Eigen::VectorXd       zbar = Eigen::VectorXd::Zero(Q_.cols());
-  for (size_t i = r.from; i < n; ++i) ee += e_[i], zbar += z_[i];
+  for (size_t i = r.from; i < n; ++i) ee += e_[i], zbar += Z(i);
   zbar /= m;
   r.variance = std::max(0.0, ee / m - ubar.squaredNorm());
   const size_t k = cols_.size(), ncol = (size_t)Q_.cols();
@@ -500,7 +501,7 @@ ModalProjection::Result ModalProjection::Analyse(size_t cut) const
   Eigen::MatrixXd coef((Eigen::Index)ncol, (Eigen::Index)r.records);
   double          fitted = 0;
   for (size_t i = r.from; i < n; ++i) {
-    const Eigen::VectorXd dz = z_[i] - zbar;
+    const Eigen::VectorXd dz = Z(i) - zbar;
     fitted += dz.squaredNorm();
     coef.col((Eigen::Index)(i - r.from)) = R_.triangularView<Eigen::Upper>().solve(dz);
   }

@@ -35,7 +35,7 @@ PetscErrorCode SteadyState::SetFromOptions()
   SquealOptionsReal("-max_periods", "Budget: at most this many periods of the starting mode in all", "SteadyState", &max_periods,
                     Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-dof", "DOF whose levels and spectrum are computed (-1: the one the transient's cycle summary reads, "
-                                    "the DOF that moves most)",
+                                    "the DOF that moves most, for which the first chunk keeps its displacements; given: no state is kept)",
                             "SteadyState", dof, &dof, nullptr));
   PetscCall(PetscOptionsBool("-from_mode",
                              "-analyses auto's statistical route starts from the mode (as the transient; false: from the pre-periods' end state)",
@@ -102,7 +102,11 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     TransientAnalysis     &tr;
     std::vector<PetscReal> u0, du0;
     PetscReal              periods, t_final, h, steps;
-    ~Restore() { tr.u0 = u0, tr.du0 = du0, tr.periods = periods, tr.t_final = t_final, tr.h = h, tr.steps_per_period = steps; }
+    ~Restore()
+    {
+      tr.u0 = u0, tr.du0 = du0, tr.periods = periods, tr.t_final = t_final, tr.h = h, tr.steps_per_period = steps;
+      tr.on_record = nullptr, tr.on_record_bytes = 0;
+    }
   } restore{transient, transient.u0, transient.du0, transient.periods, transient.t_final, transient.h, transient.steps_per_period};
   if (!u0.empty()) transient.u0 = u0, transient.du0 = du0;
   // Steps per period from the model unless given: the statistics of an FE model need its levels and
@@ -135,12 +139,61 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
   const PetscInt keep = transient.keep_every;
   PetscInt       chunk_steps = 0, max_chunks = 0;
   PetscReal      h = 0, elapsed = 0;
+  // The records as the transient hands them over (rank 0), none kept whole: t, the signal DOF, the
+  // total normal reaction and the modal projection's values. A later chunk's first record is the
+  // last one's end state; the first chunk's tail record may lie off the grid (its step count from
+  // -steady_chunk_periods): both are left out, and the next chunk starts from the tail all the same.
+  // Without -steady_dof the signal DOF is the one the first chunk's cycle summary reads, known at
+  // its end only: until then that chunk's displacements are kept, and the velocities of the last
+  // 20 % the summary reads (of the planned records: an interrupted chunk's summary window starts
+  // earlier, and its DOF is then chosen on the chord between records, without the velocities).
+  PetscInt                chunk = 0;
+  const bool              auto_dof = dof < 0;
+  RecordVector<PetscReal> first_u, first_v;
+  size_t                  v_from = 0;
+  res.dof                        = dof;
+  transient.on_record = [&](const TransientResult &tr, const TransientRecord &rec) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    if (chunk == 0 && rec.index == 0) {
+      // The modal sums' checkpoints about once per period of the starting mode, at most ~512 in
+      // the budget: the modal window starts within a period of the start-up cut.
+      if (!modes_re.empty()) {
+        const size_t per_period = std::max<size_t>(1, (size_t)std::llround(tr.T_ref / (tr.h * keep)));
+        const size_t every      = per_period * std::max<size_t>(1, (size_t)std::ceil(max_periods / 512.0));
+        (void)res.projection.SetUp(modes_re, modes_im, every, &res.modal_note); // false: the note says why
+      }
+      if (auto_dof) {
+        const size_t nr = 1 + (size_t)(tr.steps_planned / tr.keep_every) + (tr.steps_planned % tr.keep_every ? 1 : 0);
+        v_from          = nr - std::max<size_t>(nr / 5, 2);
+        PetscCallCXX(first_u.reserve(nr * N));
+        PetscCallCXX(first_v.reserve((nr - v_from) * N));
+      }
+    }
+    if (chunk > 0 && rec.index == 0) PetscFunctionReturn(0);
+    if (chunk == 0 && auto_dof) {
+      PetscCallCXX(first_u.insert(first_u.end(), rec.U, rec.U + N));
+      if (rec.index >= v_from) PetscCallCXX(first_v.insert(first_v.end(), rec.V, rec.V + N));
+    }
+    if (chunk == 0 && rec.step % keep) PetscFunctionReturn(0);
+    PetscCallCXX(res.t.push_back(elapsed + rec.t));
+    if (res.dof >= 0) PetscCallCXX(res.x.push_back(rec.U[res.dof]));
+    if (nc > 0) {
+      PetscReal s = 0;
+      for (PetscInt c = 0; c < nc; ++c) s += rec.R[3 * c + 2];
+      PetscCallCXX(res.rn.push_back(s));
+    }
+    PetscCallCXX(res.projection.Add(rec.U, 1));
+    PetscFunctionReturn(0);
+  };
+  transient.on_record_bytes = (PetscReal)(3 + 2 * modes_re.size() + 1) * sizeof(PetscReal) + (auto_dof ? 1.25 * N * sizeof(PetscReal) : 0);
   for (PetscInt k = 0; !res.converged; ++k) {
     TransientResult tr;
+    chunk = k;
     if (k == 0) {
       transient.periods = chunk_periods, transient.t_final = 0;
     } else {
       transient.h = h, transient.t_final = chunk_steps * h;
+      transient.on_record_bytes = (PetscReal)(3 + 2 * modes_re.size() + 1) * sizeof(PetscReal);
     }
     PetscCall(transient.Run(model, eq, stab, ti, tr));
     // Stopped by a signal (the transient leaves on nothing else without an error): the records so
@@ -154,7 +207,10 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
                     InterruptSignal() ? InterruptSignalName() : "a signal", k + 1, tr.steps,
                     have < 2 || (k == 0 && have < 4) ? ", before enough records for the statistics" : "");
       res.interrupted = b;
-      if (have < 2 || (k == 0 && have < 4)) break;
+      if (have < 2 || (k == 0 && have < 4)) {
+        if (k == 0) res.t.clear(), res.rn.clear(); // no signal DOF chosen: nothing analysed
+        break;
+      }
     }
     if (k == 0) {
       res.T_ref = tr.T_ref;
@@ -166,44 +222,31 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       // Later chunks: a whole number of records, about chunk_periods each.
       chunk_steps = std::max<PetscInt>(keep, (PetscInt)std::llround(chunk_periods * tr.T_ref / h / keep) * keep);
       max_chunks  = 1 + (PetscInt)std::ceil((max_periods - chunk_periods) * tr.T_ref / (chunk_steps * h) - 1e-9);
-      if (rank == 0) res.dof = dof >= 0 ? dof : std::max<PetscInt>(0, tr.summary.signal_dof);
-      PetscCallMPI(MPI_Bcast(&res.dof, 1, MPIU_INT, 0, comm_));
-      // Checkpoints of the modal sums about once per period of the starting mode, at most ~512 in
-      // the budget: the modal window starts within a period of the start-up cut.
-      if (rank == 0 && !modes_re.empty()) {
-        const size_t per_period = std::max<size_t>(1, (size_t)std::llround(tr.T_ref / (h * keep)));
-        const size_t every      = per_period * std::max<size_t>(1, (size_t)std::ceil(max_periods / 512.0));
-        (void)res.projection.SetUp(modes_re, modes_im, every, &res.modal_note); // false: the note says why
+      if (auto_dof) {
+        // The DOF the transient's summary reads over the last 20 % of this chunk's records.
+        if (rank == 0) {
+          const size_t nr = tr.t.size(), from = nr - std::max<size_t>(nr / 5, 2);
+          TransientResult w;
+          w.N = N, w.T_ref = tr.T_ref;
+          PetscCallCXX(w.t.assign(tr.t.begin() + (long)from, tr.t.end()));
+          PetscCallCXX(w.U.assign(first_u.begin() + (long)(from * N), first_u.end()));
+          if (from >= v_from && first_v.size() == (nr - v_from) * N) PetscCallCXX(w.V.assign(first_v.begin() + (long)((from - v_from) * N), first_v.end()));
+          res.first_chunk_state_bytes = (first_u.size() + first_v.size()) * sizeof(PetscReal);
+          res.dof = std::max<PetscInt>(0, TransientAnalysis::SignalDof(w));
+          for (size_t i = 0; i < res.t.size(); ++i) PetscCallCXX(res.x.push_back(first_u[i * N + res.dof]));
+          RecordVector<PetscReal>().swap(first_u), RecordVector<PetscReal>().swap(first_v);
+        }
+        PetscCallMPI(MPI_Bcast(&res.dof, 1, MPIU_INT, 0, comm_));
       }
     }
-    // Rank 0's records, appended (a later chunk's first record is the last one's end state).
+    // The end state (the transient keeps the last record's), where the next chunk starts.
     std::vector<PetscReal> endU(N), endV(N);
     if (rank == 0) {
-      const size_t nr = tr.t.size();
-      PetscCheck(nr >= 2 && (k == 0 || stopped || (tr.steps % keep) == 0), PETSC_COMM_SELF, PETSC_ERR_PLIB, "steady state: chunk %" PetscInt_FMT " off the record grid",
-                 k);
-      for (size_t i = k == 0 ? 0 : 1; i < nr; ++i) {
-        res.t.push_back(elapsed + tr.t[i]);
-        res.x.push_back(tr.U[i * N + res.dof]);
-        if (nc > 0) {
-          PetscReal s = 0;
-          for (PetscInt c = 0; c < nc; ++c) s += tr.R[(i * nc + c) * 3 + 2];
-          res.rn.push_back(s);
-        }
-      }
+      PetscCheck(tr.t.size() >= 2 && (k == 0 || stopped || (tr.steps % keep) == 0), PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                 "steady state: chunk %" PetscInt_FMT " off the record grid", k);
       std::copy(tr.U.end() - N, tr.U.end(), endU.begin());
       std::copy(tr.V.end() - N, tr.V.end(), endV.begin());
     }
-    // The first chunk may end off the grid (its step count from -steady_chunk_periods): its tail
-    // record is dropped from the statistics, and the next chunks start from it all the same. (A
-    // stopped chunk's records are all on the grid: the transient keeps the end state only at its
-    // last step.)
-    const bool off_grid = !stopped && k == 0 && tr.steps % keep;
-    if (rank == 0 && off_grid) {
-      res.t.pop_back(), res.x.pop_back();
-      if (nc > 0) res.rn.pop_back();
-    }
-    if (rank == 0) res.projection.Add(tr.U.data(), tr.t.size() - (off_grid ? 1 : 0), k == 0 ? 0 : 1);
     elapsed += tr.steps * h;
     PetscCallMPI(MPI_Bcast(endU.data(), (int)N, MPIU_REAL, 0, comm_));
     PetscCallMPI(MPI_Bcast(endV.data(), (int)N, MPIU_REAL, 0, comm_));
@@ -234,7 +277,8 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     }
     res.complete = res.converged;
   }
-  res.seconds  = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  res.record_bytes = (1 + !res.x.empty() + !res.rn.empty()) * sizeof(PetscReal) + res.projection.RecordBytes();
+  res.seconds      = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   PetscFunctionReturn(0);
 }
 

@@ -1,6 +1,7 @@
 // The statistical steady state (issue 19 items 1 and 3): the signal statistics on signals whose
 // answer is known exactly, and the pipeline's choice between shooting and the statistical route.
 #include "squeal/app/pipeline.h"
+#include "squeal/core/gather.h"
 #include "squeal/model/builders.h"
 #include "squeal/steady/steady_state.h"
 
@@ -424,4 +425,104 @@ TEST(SteadyState, ModalProjectionRefusesDependentShapes)
   const steady::ModalProjection::Result r = mp.Analyse(0);
   EXPECT_NEAR(r.explained, 1.0, 1e-12);
   EXPECT_NEAR(r.share[0], 1.0, 1e-12);
+}
+
+namespace {
+
+// A chain of 3-DOF cells, 2 of 20 touching the surface: N = 60 DOFs, 2 contacts, unstable.
+PetscErrorCode ChainPipeline(Pipeline &pl)
+{
+  ChainParams p;
+  p.cells = 20, p.contact_every = 10;
+  PetscFunctionBeginUser;
+  PetscCall(BuildChain(PETSC_COMM_WORLD, p, pl.model));
+  PetscCall(pl.SetFromOptions());
+  PetscCall(pl.SolveEquilibrium());
+  PetscCall(pl.SolveStability());
+  pl.transient.steps_per_period = 100, pl.transient.keep_every = 1;
+  pl.steady.chunk_periods = 10, pl.steady.max_periods = 10;
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+// The statistics take the records as the transient hands them over and keep no state per record:
+// one chunk's signal, normal reaction and signal DOF are those of the full records of the same
+// transient run alone (the reference: its U, R and cycle summary), and per record the steady
+// state holds t, x, r_n and the 2k + 1 projection values, not the 2N of the states.
+TEST(SteadyState, RecordsStreamThroughWithoutTheirStates)
+{
+  Pipeline pl(PETSC_COMM_WORLD);
+  ASSERT_EQ(ChainPipeline(pl), 0);
+  const PetscInt N = pl.model.Size(), nc = pl.model.contacts.Size();
+  ASSERT_EQ(N, 60);
+  ASSERT_FALSE(pl.stability.unstable.empty());
+  ASSERT_EQ(pl.Settle({}, {}, "the mode"), 0);
+  const SteadyStateResult &r = pl.settled;
+  EXPECT_FALSE(pl.transient.on_record); // put back
+  TransientResult tr;
+  pl.transient.periods = pl.steady.chunk_periods, pl.transient.t_final = 0;
+  ASSERT_EQ(pl.RunTransient(tr), 0);
+  EXPECT_FALSE(tr.streamed);
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  EXPECT_EQ(r.chunks, 1);
+  std::vector<std::vector<double>> re, im;
+  for (PetscInt m : pl.stability.unstable) {
+    std::vector<PetscReal> a, b;
+    ASSERT_EQ(GatherVector(pl.stability.modes[m].phi_re, false, a), 0);
+    ASSERT_EQ(GatherVector(pl.stability.modes[m].phi_im, false, b), 0);
+    re.push_back(a), im.push_back(b);
+  }
+  if (rank == 0) {
+    EXPECT_EQ(r.dof, tr.summary.signal_dof);
+    ASSERT_EQ(r.t.size(), tr.t.size());
+    ASSERT_EQ(r.x.size(), tr.t.size());
+    ASSERT_EQ(r.rn.size(), tr.t.size());
+    for (size_t i = 0; i < tr.t.size(); ++i) {
+      PetscReal s = 0;
+      for (PetscInt c = 0; c < nc; ++c) s += tr.R[(i * nc + c) * 3 + 2];
+      ASSERT_EQ(r.t[i], tr.t[i]) << i;
+      ASSERT_EQ(r.x[i], tr.U[i * N + r.dof]) << i;
+      ASSERT_EQ(r.rn[i], s) << i;
+    }
+    // The modal projection fed one record at a time is the one fed the whole record.
+    ASSERT_EQ(r.projection.Modes(), pl.stability.unstable.size()) << r.modal_note;
+    steady::ModalProjection whole;
+    ASSERT_TRUE(whole.SetUp(re, im, 1, nullptr));
+    whole.Add(tr.U.data(), tr.t.size());
+    const steady::ModalProjection::Result q = whole.Analyse(0), p = r.projection.Analyse(0);
+    ASSERT_EQ(q.q.rows(), p.q.rows());
+    EXPECT_LT((q.q - p.q).norm(), 1e-12 * q.q.norm());
+    // Memory per record: t, x, r_n and Q^T (u - u_ref), |u - u_ref|^2; the first chunk alone kept its
+    // displacements (and the last 20 % of its velocities) to find the signal DOF.
+    const size_t k2 = 2 * pl.stability.unstable.size();
+    EXPECT_EQ(r.record_bytes, (3 + k2 + 1) * sizeof(PetscReal));
+    EXPECT_LT(r.record_bytes, (size_t)TransientAnalysis::RecordBytes(N, nc) / 10);
+    EXPECT_GE(r.first_chunk_state_bytes, tr.t.size() * N * sizeof(PetscReal));
+    EXPECT_LE(r.first_chunk_state_bytes, (tr.t.size() * N + (tr.t.size() / 5 + 2) * N) * sizeof(PetscReal));
+  }
+}
+
+// With the signal DOF given no state is kept at all, and the chunks' records lie on one grid (a
+// later chunk's first record, the last one's end state, is not repeated).
+TEST(SteadyState, AGivenSignalDofKeepsNoStateAndChunksJoinOnTheGrid)
+{
+  Pipeline pl(PETSC_COMM_WORLD);
+  ASSERT_EQ(ChainPipeline(pl), 0);
+  pl.steady.dof = 7, pl.steady.max_periods = 30, pl.steady.rtol = 1e-9; // three chunks, never converged
+  ASSERT_EQ(pl.Settle({}, {}, "the mode"), 0);
+  const SteadyStateResult &r = pl.settled;
+  EXPECT_EQ(r.chunks, 3);
+  EXPECT_EQ(r.dof, 7);
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0) {
+    EXPECT_EQ(r.first_chunk_state_bytes, 0u);
+    ASSERT_EQ(r.x.size(), r.t.size());
+    ASSERT_GT(r.t.size(), 2000u);
+    const double dt = r.t[1] - r.t[0];
+    for (size_t i = 1; i < r.t.size(); ++i) ASSERT_NEAR(r.t[i] - r.t[i - 1], dt, 1e-9 * dt) << i;
+    EXPECT_EQ(r.projection.Records(), r.t.size());
+  }
 }

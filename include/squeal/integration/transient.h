@@ -16,6 +16,7 @@
 #include "squeal/io/h5.h"
 #include "squeal/stability/stability.h"
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -90,10 +91,24 @@ using RecordVector = std::vector<T, RecordAllocator<T>>;
 struct TransientResult {
   PetscReal               h = 0, theta = 0, T_ref = 0;
   PetscInt                steps = 0, N = 0, nc = 0, keep_every = 1;
+  PetscInt                steps_planned = 0; // the run's step count (steps: those done)
   RecordVector<PetscReal> t, U, V, R, energy; // energy: [E, W_damping, W_reactions, W_load] per record
   RecordVector<PetscInt>  status;
+  // Set when TransientAnalysis::on_record took the records as they came: t and energy are every
+  // record's, U, V, R and status the last record's only (the end state), and there is no summary.
+  bool                   streamed = false;
   bool                   complete = false;
   TransientSummary       summary;
+};
+
+// One record as TransientAnalysis::Run hands it to on_record (rank 0): the state after `step`
+// steps, valid during the call only.
+struct TransientRecord {
+  size_t           index = 0; // 0 for the start state
+  PetscInt         step  = 0;
+  PetscReal        t     = 0;
+  const PetscReal *U = nullptr, *V = nullptr, *R = nullptr, *energy = nullptr; // N, N, 3 n_c, 4 values
+  const PetscInt  *status = nullptr;                                           // n_c values
 };
 
 class TransientAnalysis {
@@ -114,6 +129,10 @@ public:
   static void    Summarise(TransientResult &res, PetscReal settle_tol = 1e-3, PetscInt settle_periods = 5);
   // Bytes one record takes in memory on rank 0 and in the results file.
   static PetscReal RecordBytes(PetscInt N, PetscInt nc);
+  // The DOF the cycle summary reads (TransientSummary::signal_dof, the one with the largest refined
+  // peak-to-peak) over all the records of `window` (t, U and, for the refinement, V), where
+  // Summarise reads the last 20 % of a run's: records nr - max(nr / 5, 2) .. nr - 1.
+  static PetscInt SignalDof(const TransientResult &window);
 
   PetscReal periods = 200, t_final = 0, steps_per_period = 1000, h = 0, amplitude = 1e-5;
   PetscReal settle_tol = 1e-3, max_memory = 0; // max_memory: MiB of records; 0: a quarter of physical memory
@@ -122,6 +141,12 @@ public:
   PetscBool steps_given    = PETSC_FALSE; // -transient_steps_per_period or -transient_h on the command line or in the scene
   PetscBool progress = PETSC_FALSE, progress_set = PETSC_FALSE;
   std::vector<PetscReal> u0, du0;
+  // Not an option: a caller that analyses the records as they come (the statistical steady state)
+  // sets it, and the run then keeps no full state per record (TransientResult::streamed). Called on
+  // rank 0 at every record with the result's header (h, T_ref, keep_every, steps_planned) set.
+  // on_record_bytes: what it keeps per record, for -transient_max_memory.
+  std::function<PetscErrorCode(const TransientResult &, const TransientRecord &)> on_record;
+  PetscReal                                                                       on_record_bytes = 0;
 
 private:
   // Run's steps: the mode to start from, the records' number (keep_every raised, or the run refused,

@@ -93,7 +93,7 @@ Analysis Analyse(const std::vector<double> &x, double dt, long batches);
 // reduced model they are another PEP), and truncated to the k unstable modes that projection
 // leaves a residual that is not the smallest. The same fit as scripts/steady_state.py's.
 //
-// The records stream through in chunks (Add), none kept: per record only Q^T (u_i - u_ref) (B = Q R,
+// The records stream through (Add, a record or a chunk at a time), none kept: per record only Q^T (u_i - u_ref) (B = Q R,
 // thin Householder QR) and |u_i - u_ref|^2, plus the running sum of u_i - u_ref every `every`
 // records, so that the mean and the variance come out exactly over a window that starts at such a
 // checkpoint (the first one at or after the start-up cut).
@@ -108,6 +108,14 @@ public:
   size_t Records() const { return e_.size(); }
   size_t Modes() const { return cols_.size(); }
   size_t Size() const { return N_; }
+  // Bytes held per record (the values, not the vectors' spare capacity): (columns + 1) reals.
+  size_t RecordBytes() const { return N_ ? (size_t)(Q_.cols() + 1) * sizeof(double) : 0; }
+  // Bytes held in all: the basis and the checkpoints (N each), and the records'.
+  size_t Bytes() const
+  {
+    return (size_t)(Q_.size() + R_.size() + ref_.size() + sum_.size() + (Eigen::Index)checkpoints_.size() * sum_.size()) * sizeof(double) +
+           Records() * RecordBytes();
+  }
 
   struct Result {
     size_t              from = 0, records = 0; // the window: records from..from+records-1
@@ -132,7 +140,8 @@ private:
   Eigen::VectorXd                  ref_, sum_;
   std::vector<Eigen::VectorXd>     checkpoints_; // sum of u_i - u_ref over records < c every
   std::vector<double>              e_;           // |u_i - u_ref|^2
-  std::vector<Eigen::VectorXd>     z_;           // Q^T (u_i - u_ref)
+  std::vector<double>              z_;           // Q^T (u_i - u_ref), Q_.cols() values per record
+  Eigen::Map<const Eigen::VectorXd> Z(size_t i) const { return {z_.data() + i * (size_t)Q_.cols(), Q_.cols()}; }
 };
 
 } // namespace steady
@@ -153,6 +162,10 @@ struct SteadyStateResult {
   std::string                       modal_note;
   bool                   converged = false, complete = false;
   std::string            interrupted; // non-empty: a signal stopped the run, and where
+  // Memory (rank 0): per analysed record, the bytes of t, x, rn and the projection's values; and the
+  // most the first chunk held of full states (displacements of every record, velocities of its
+  // last 20 %) to find the signal DOF when -steady_dof is not given (0 when it is).
+  size_t                 record_bytes = 0, first_chunk_state_bytes = 0;
   PetscReal              seconds = 0;
   std::string            start; // where the run started (the mode, or the pre-periods' end state)
 };
