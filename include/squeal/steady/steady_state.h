@@ -155,6 +155,7 @@ struct SteadyStateResult {
   std::string            interrupted; // non-empty: a signal stopped the run, and where
   PetscReal              seconds = 0;
   std::string            start; // where the run started (the mode, or the pre-periods' end state)
+  std::vector<PetscReal> U_end, dU_end; // the last chunk's end state, all N values on every rank
 };
 
 class SteadyState {
