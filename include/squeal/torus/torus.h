@@ -60,6 +60,8 @@ struct TorusResult {
   // iterates and time; T0, rho0, residual_history and the counts above are then the second pass's.
   PetscInt               contact_unconverged = 0;    // flow steps whose contact solve did not converge (noise for MFFD)
   PetscReal              contact_residual_max = 0;
+  PetscInt               retries = 0;                // new starts after Newton did not converge (-torus_retries)
+  std::vector<PetscReal> retry_history;              // ||F||/||u|| where each earlier start ended
   bool                   refined = false;
   PetscReal              refine_T0 = 0, refine_rho0 = 0, refine_seconds = 0;
   PetscInt               refine_iterations = 0, refine_krylov = 0;
@@ -106,6 +108,8 @@ public:
   // -torus_refine_its: without -torus_f2 (an estimated start), Newton iterations after which the
   // stroboscopic sequence and the start circle are made again at Newton's T and rho (0: never).
   PetscInt  refine_its = 0;
+  // -torus_retries: Newton not converged, new starts further on the motion (Run).
+  PetscInt  retries = 1;
   // -torus_auto: -analyses auto goes on to the torus when the statistical steady state calls the
   // motion quasi-periodic with two bases (started from those lines and the steady state's end state).
   PetscBool in_auto = PETSC_TRUE;
