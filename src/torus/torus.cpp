@@ -256,7 +256,7 @@ PetscErrorCode TorusSolver::SetFromOptions()
                             &retries, nullptr));
   PetscCall(PetscOptionsInt("-refine_its", "Without -torus_f2: Newton iterations after which the sequence and start circle are made again at Newton's T and rho (0: never)",
                             "TorusSolver", refine_its, &refine_its, nullptr));
-  PetscCall(PetscOptionsBool("-auto", "-analyses auto: after a quasi-periodic statistical steady state (two bases), the torus from its lines and end state",
+  PetscCall(PetscOptionsBool("-auto", "-analyses auto: after a quasi-periodic statistical steady state (two bases), the torus from its two lines (and its own start-up)",
                              "TorusSolver", in_auto, &in_auto, nullptr));
   PetscCall(PetscOptionsReal("-rtol", "Converged when ||F|| / ||u|| (scaled states) is below this", "TorusSolver", rtol, &rtol, nullptr));
   checks.Add("torus_", "rtol", &rtol, Range::Positive());
