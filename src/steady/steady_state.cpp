@@ -251,6 +251,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     PetscCallMPI(MPI_Bcast(endU.data(), (int)N, MPIU_REAL, 0, comm_));
     PetscCallMPI(MPI_Bcast(endV.data(), (int)N, MPIU_REAL, 0, comm_));
     transient.u0 = endU, transient.du0 = endV;
+    res.U_end = endU, res.dU_end = endV;
     res.chunks  = k + 1;
     res.periods = elapsed / res.T_ref;
     PetscCall(Analyse(res));

@@ -252,6 +252,12 @@ PetscErrorCode TorusSolver::SetFromOptions()
   PetscCall(PetscOptionsInt("-snapshots", "Stroboscopic samples the start circle is fitted on (PETSC_DECIDE: two turns of the circle, at least 4 M)",
                             "TorusSolver", snapshots, &snapshots, nullptr));
   PetscCall(PetscOptionsInt("-steps", "Theta-method steps per stroboscopic period", "TorusSolver", steps, &steps, nullptr));
+  PetscCall(PetscOptionsInt("-retries", "Not converged: new starts, each 0.618 period further on the motion, at Newton's T and rho", "TorusSolver", retries,
+                            &retries, nullptr));
+  PetscCall(PetscOptionsInt("-refine_its", "Without -torus_f2: Newton iterations after which the sequence and start circle are made again at Newton's T and rho (0: never)",
+                            "TorusSolver", refine_its, &refine_its, nullptr));
+  PetscCall(PetscOptionsBool("-auto", "-analyses auto: after a quasi-periodic statistical steady state (two bases), the torus from its two lines (and its own start-up)",
+                             "TorusSolver", in_auto, &in_auto, nullptr));
   PetscCall(PetscOptionsReal("-rtol", "Converged when ||F|| / ||u|| (scaled states) is below this", "TorusSolver", rtol, &rtol, nullptr));
   checks.Add("torus_", "rtol", &rtol, Range::Positive());
   PetscCall(PetscOptionsBool("-monitor", "One line per Newton iteration", "TorusSolver", monitor, &monitor, nullptr));
@@ -264,6 +270,8 @@ PetscErrorCode TorusSolver::SetFromOptions()
   PetscCheck(startup_periods >= 0, comm_, kErrInput, "option -torus_startup_periods = %" PetscInt_FMT ": expected >= 0", startup_periods);
   PetscCheck(snapshots == PETSC_DECIDE || snapshots >= points, comm_, kErrInput,
              "option -torus_snapshots = %" PetscInt_FMT ": expected at least -torus_points (%" PetscInt_FMT ")", snapshots, points);
+  PetscCheck(retries >= 0, comm_, kErrInput, "option -torus_retries = %" PetscInt_FMT ": expected >= 0", retries);
+  PetscCheck(refine_its >= 0, comm_, kErrInput, "option -torus_refine_its = %" PetscInt_FMT ": expected >= 0", refine_its);
   PetscCheck(steps >= 1, comm_, kErrInput, "option -torus_steps = %" PetscInt_FMT ": expected >= 1", steps);
   PetscCheck(f2 == 0 || f1 > 0, comm_, kErrInput, "option -torus_f2 = %g needs -torus_f1", (double)f2);
   if (!snes_) {
@@ -452,7 +460,11 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
     PetscCall(VecRestoreArray(dU, &v));
     Eigen::VectorXd r = r0;
     StepInfo        info;
-    for (PetscInt k = 0; k < ns; ++k) PetscCall(ti.Step(U, dU, r, &info));
+    for (PetscInt k = 0; k < ns; ++k) {
+      PetscCall(ti.Step(U, dU, r, &info));
+      // An unconverged contact solve is noise in the flow, and MFFD differences it.
+      if (!info.contact.converged) ++res.contact_unconverged, res.contact_residual_max = std::max(res.contact_residual_max, info.contact.residual);
+    }
     y1.resize(2 * N);
     PetscCall(gather(U, y1.head(N)));
     PetscCall(gather(dU, y1.tail(N)));
@@ -461,29 +473,35 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
     PetscFunctionReturn(0);
   };
 
-  // The stroboscopic sequence from the start-up's end.
+  // The stroboscopic sequence from the start-up's end (continued from y by later sequences).
   PetscReal rho = 0;
   if (f2 > 0) rho = f2 / f1 - 1 - std::floor(f2 / f1 - 1);
-  PetscInt K = snapshots;
-  if (K == PETSC_DECIDE) K = rho > 0 ? std::clamp<PetscInt>((PetscInt)std::ceil(2 / std::min(rho, 1 - rho)), 4 * points, 400) : 200;
-  Eigen::MatrixXd Y(2 * N, K);
   Eigen::VectorXd y = Eigen::Map<Eigen::VectorXd>(z.data(), 2 * N) - ze, y1;
-  for (PetscInt k = 0; k < K; ++k) {
-    Y.col(k) = y;
-    PetscCall(flow(y, T0, y1));
-    y = y1;
-  }
-  res.flows     = K;
-  res.snapshots = K;
-  if (rank == 0)
-    for (PetscInt k = 0; k < K; ++k) res.snapshot_signal.push_back(Y(res.signal_dof, k));
+  auto sequence = [&](PetscReal T, PetscInt K, Eigen::MatrixXd &Y) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    Y.resize(2 * N, K);
+    for (PetscInt k = 0; k < K; ++k) {
+      Y.col(k) = y;
+      PetscCall(flow(y, T, y1));
+      y = y1;
+    }
+    res.flows += K;
+    res.snapshots = K;
+    res.snapshot_signal.clear();
+    if (rank == 0)
+      for (PetscInt k = 0; k < K; ++k) res.snapshot_signal.push_back(Y(res.signal_dof, k));
+    PetscFunctionReturn(0);
+  };
+  // Two turns of the circle, at least 4 M samples.
+  auto two_turns = [&](PetscReal r) { return std::clamp<PetscInt>((PetscInt)std::ceil(2 / std::max(std::min(r, 1 - r), 1e-3)), 4 * points, 400); };
+  PetscInt K = snapshots;
+  if (K == PETSC_DECIDE) K = rho > 0 ? two_turns(rho) : 200;
+  Eigen::MatrixXd Y;
+  PetscCall(sequence(T0, K, Y));
   if (rho == 0) rho = EstimateRotation(Y);
-  // The fit on the last two turns only (at least 4 M samples): T0 off by dT moves the samples along
-  // the flow by dT per sample, and a longer sequence fits a wider band of the torus. On the small
-  // pad from the measured period (0.02 % off) the fit on 200 samples started Newton at 1.0e-2, where
-  // Newton crept (2e-4 after 8 iterations); see docs/torus.md.
-  const PetscInt  Kfit   = std::min<PetscInt>(K, std::max<PetscInt>(4 * points, (PetscInt)std::ceil(2 / std::max(std::min(rho, 1 - rho), 1e-3))));
-  const Eigen::MatrixXd circle = FitCircle(Y.rightCols(Kfit), rho, points);
+  // The fit on the last two turns only: T0 off by dT moves the samples along the flow by dT per
+  // sample, and a longer sequence fits a wider band of the torus.
+  Eigen::MatrixXd circle = FitCircle(Y.rightCols(std::min(K, two_turns(rho))), rho, points);
   // Displacements weighted by the base angular frequency, so that they count as velocities; both by the motion's size.
   const PetscReal w = 2 * PETSC_PI / T0, a = std::sqrt(Y.bottomRows(N).squaredNorm() / (N * K));
   PetscCheck(a > 0, comm_, PETSC_ERR_NOT_CONVERGED, "torus: no motion after the start-up (velocities all zero)");
@@ -502,7 +520,57 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
     }
     PetscCall(LinearMonodromy(ti, r0, nsteps, mono));
   }
-  PetscCall(Solve(flow, s, circle, T0, rho, res, mono.size() ? &mono : nullptr));
+  const Eigen::MatrixXd *pc = mono.size() ? &mono : nullptr;
+  // An estimated start (no -torus_f2) is refined once: Newton's period and rotation number after
+  // -torus_refine_its iterations make a new sequence and circle. The start-up's measured period is
+  // the mean over its last few cycles, which the modulation biases (the small pad at V = 10 m/s:
+  // 8664.02 Hz for a torus at 8662.42 Hz); a sequence sampled 2e-4 off the period drifts along the
+  // flow by that much per sample, and Newton from the circle fitted on it crept at 1.2e-4 for 15
+  // iterations, as from the spectrum's lines given with that f1 (5e-4). Fitted on a sequence at
+  // Newton's period it converges as from the spectrum's lines (docs/torus.md).
+  res.refined = false;
+  if (f2 == 0 && refine_its > 0) {
+    PetscInt  max_it, max_f;
+    PetscReal atol, rtol_s, stol;
+    PetscCall(SNESGetTolerances(snes_, &atol, &rtol_s, &stol, &max_it, &max_f));
+    PetscCall(SNESSetTolerances(snes_, atol, rtol_s, stol, std::min(refine_its, max_it), max_f));
+    PetscErrorCode ierr = Solve(flow, s, circle, T0, rho, res, pc);
+    PetscCall(SNESSetTolerances(snes_, atol, rtol_s, stol, max_it, max_f));
+    PetscCall(ierr);
+    if (!res.converged && std::isfinite(res.T) && res.T > 0 && res.rho > 0 && res.rho < 1) {
+      res.refined         = true;
+      res.refine_T0       = T0, res.refine_rho0 = rho;
+      res.refine_history  = res.residual_history;
+      res.refine_seconds  = res.seconds;
+      res.refine_iterations = res.iterations, res.refine_krylov = res.krylov_iterations;
+      T0 = res.T, rho = res.rho;
+      if (monitor)
+        PetscCall(PetscPrintf(comm_, "  torus: start refined after %" PetscInt_FMT " iteration(s): a new sequence and circle at f1 %.4f Hz, rho %.9f\n",
+                              res.iterations, 1 / (double)T0, (double)rho));
+      // From the end of the first sequence: later on the same motion.
+      PetscCall(sequence(T0, two_turns(rho), Y));
+      circle = FitCircle(Y, rho, points);
+      PetscCall(Solve(flow, s, circle, T0, rho, res, pc));
+    }
+  } else PetscCall(Solve(flow, s, circle, T0, rho, res, pc));
+  // Not converged: another start elsewhere on the motion. Whether Newton converges depends on where
+  // on the torus the start lies (the phase conditions pick the circle at the start's time phase):
+  // on the small pad at V = 10 m/s the estimated start after 300 start-up periods stalled at
+  // 1.2e-4, after 310 it converged (docs/torus.md). The state moves on by 0.618 of a period (a time
+  // phase unlike the last's), then a new sequence at Newton's T and rho when they stayed close.
+  for (PetscInt a = 0; a < retries && !res.converged; ++a) {
+    if (std::isfinite(res.T) && std::abs(res.T - T0) < 1e-3 * T0 && res.rho > 0 && res.rho < 1) T0 = res.T, rho = res.rho;
+    PetscCall(flow(y, 0.618 * T0, y1));
+    y = y1;
+    res.retry_history.push_back(res.residual);
+    ++res.retries;
+    if (monitor)
+      PetscCall(PetscPrintf(comm_, "  torus: not converged (||F||/||u|| %.3e); retry %" PetscInt_FMT " from 0.618 period later, f1 %.4f Hz, rho %.9f\n",
+                            (double)res.residual, res.retries, 1 / (double)T0, (double)rho));
+    PetscCall(sequence(T0, two_turns(rho), Y));
+    circle = FitCircle(Y, rho, points);
+    PetscCall(Solve(flow, s, circle, T0, rho, res, pc));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -519,7 +587,23 @@ PetscErrorCode TorusSolver::View(const TorusResult &res, PetscViewer viewer) con
   PetscCall(PetscViewerASCIIPrintf(viewer, "  T = %.9e s: f1 = %.4f Hz, rotation number rho = %.8f: modulation f1 min(rho, 1 - rho) = %.4f Hz, f2 = f1 + %.4f = %.4f Hz\n",
                                    (double)res.T, (double)res.f1, (double)res.rho, (double)fm, (double)fm, (double)(res.f1 + fm)));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  GMRES %s\n", res.preconditioned ? "preconditioned by the block-circulant linear monodromy" : "without preconditioner"));
+  if (res.contact_unconverged)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  %" PetscInt_FMT " step(s) of the flows with an unconverged contact solve (largest residual %.2e)\n", res.contact_unconverged,
+                                     (double)res.contact_residual_max));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  start: f1 = %.4f Hz, rho = %.8f\n", 1 / (double)res.T0, (double)res.rho0));
+  if (res.retries) {
+    std::string h;
+    for (PetscReal r : res.retry_history) h += (h.empty() ? "" : ", ") + std::to_string(r).substr(0, 8);
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  after %" PetscInt_FMT " retry(ies) (-torus_retries): the earlier starts ended at ||F||/||u|| %s; the counts above are the last start's\n",
+                                     res.retries, h.c_str()));
+  }
+  if (res.refined) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  refined start (-torus_refine_its %" PetscInt_FMT "): the estimated f1 = %.4f Hz, rho = %.8f, ||F||/||u|| %.3e -> %.3e in %.1f s; "
+                                             "sequence and circle made again at Newton's f1 and rho above\n",
+                                     res.refine_iterations, 1 / (double)res.refine_T0, (double)res.refine_rho0,
+                                     (double)(res.refine_history.empty() ? 0 : res.refine_history.front()),
+                                     (double)(res.refine_history.empty() ? 0 : res.refine_history.back()), (double)res.refine_seconds));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -552,6 +636,16 @@ PetscErrorCode TorusSolver::Write(const TorusResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute(g, "krylov_iterations", res.krylov_iterations));
   PetscCall(out.WriteAttribute(g, "flows", res.flows));
   PetscCall(out.WriteAttribute(g, "signal_dof", res.signal_dof));
+  PetscCall(out.WriteAttribute(g, "refined", (PetscInt)res.refined));
+  PetscCall(out.WriteAttribute(g, "retries", res.retries));
+  if (res.refined) {
+    unsigned long long nr = res.refine_history.size();
+    PetscCallMPI(MPI_Bcast(&nr, 1, MPI_UNSIGNED_LONG_LONG, 0, comm_));
+    PetscCall(out.WriteArray("/torus/refine_history", {nr}, res.refine_history.data()));
+    PetscCall(out.WriteAttribute(g, "refine_f1", 1 / res.refine_T0));
+    PetscCall(out.WriteAttribute(g, "refine_rho", res.refine_rho0));
+    PetscCall(out.WriteAttribute(g, "refine_seconds", res.refine_seconds));
+  }
   PetscFunctionReturn(0);
 }
 

@@ -28,6 +28,10 @@ def main():
     ap.add_argument("--route", choices=["shooting", "steady_state"], required=True)
     ap.add_argument("--verdict", action="append", help="allowed verdicts (steady_state); default any")
     ap.add_argument("--modal", action="store_true", help="check the unstable modes' projection (steady_state)")
+    ap.add_argument("--torus", choices=["converged", "tried"],
+                    help="a quasi-periodic verdict must go on to the torus (-torus_auto): converged, with its f1 and "
+                         "modulation within --ftol Hz of the steady state's two bases; or tried, either way said in /route")
+    ap.add_argument("--ftol", type=float, default=1.0)
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
@@ -76,8 +80,49 @@ def main():
         if len(s["lines"]) == 0:
             fail("no spectral line")
         modal = check_modal(res, s) if a.modal else ""
+        if a.torus:
+            modal += check_torus(a, res, g, s, lines)
         print(f"check_route: steady_state, return distance {d:.2e} >= {tol:g}; RMS {lv['rms']:.4e} in "
               f"[{lv['rms_lo']:.4e}, {lv['rms_hi']:.4e}] as numpy's; PSD as numpy's; verdict {at['verdict']}{modal}")
+
+
+def check_torus(a, res, g, s, lines):
+    """-analyses auto after a quasi-periodic steady state: the route line and /route say whether the
+    torus converged; converged, /torus's f1 and modulation (the distance of f2 to the nearest multiple
+    of f1) agree with the spectrum's two bases, the lines named 1 f1 (or 1 f1 + 0 f2) and 0 f1 + 1 f2."""
+    at = s.attrs
+    verdict = at["verdict"]
+    tor = g.attrs.get("torus", "")
+    if verdict != "quasi-periodic":
+        if tor.startswith("converged") or tor.startswith("not converged"):
+            fail(f"verdict {verdict} but /route torus = {tor}")
+        return f"; no torus ({tor})"
+    said = [ln for ln in lines if ln.startswith("route: torus: ")]
+    if tor not in ("converged", "not converged") or not said:
+        fail(f"quasi-periodic verdict: /route torus = '{tor}', route lines {lines}")
+    if tor == "not converged":
+        if a.torus == "converged":
+            fail(f"the torus did not converge: {g.attrs['torus_reason']}")
+        if "statistical steady state above stands" not in said[0]:
+            fail(f"a torus that did not converge must leave the statistics standing: {said[0]}")
+        return "; torus tried, not converged (the statistics stand)"
+    names = [n.strip() for n in str(at["line_names"]).split(";")]
+    fl = np.asarray(s["lines"])
+    # The first base is named before the second exists ("1 f1"), or after it ("1 f1 + 0 f2").
+    b1 = [f for f, n in zip(fl, names) if n in ("1 f1", "1 f1 + 0 f2")]
+    b2 = [f for f, n in zip(fl, names) if n == "0 f1 + 1 f2"]
+    if len(b1) != 1 or len(b2) != 1:
+        fail(f"no lines named the two bases in {names}")
+    b1, b2 = b1[0], b2[0]
+    t = res.group("torus").attrs
+    if not int(t["converged"]) or not float(t["residual"]) < 1e-6:
+        fail(f"/route says converged, /torus converged {int(t['converged'])}, residual {float(t['residual']):.3e}")
+    f1, fm = float(t["f1"]), float(t["f_modulation"])
+    r = (b2 / b1) % 1.0
+    bm = b1 * min(r, 1 - r)
+    if abs(f1 - b1) > a.ftol or abs(fm - bm) > a.ftol:
+        fail(f"torus f1 {f1:.4f} Hz, modulation {fm:.4f} Hz; the bases give {b1:.4f} and {bm:.4f} (+- {a.ftol:g})")
+    return f"; torus converged: f1 {f1:.3f} Hz (base {b1:.3f}), modulation {fm:.3f} Hz (bases {bm:.3f})"
 
 
 def check_modal(res, s):

@@ -168,6 +168,7 @@ struct SteadyStateResult {
   size_t                 record_bytes = 0, first_chunk_state_bytes = 0;
   PetscReal              seconds = 0;
   std::string            start; // where the run started (the mode, or the pre-periods' end state)
+  std::vector<PetscReal> U_end, dU_end; // the last chunk's end state, all N values on every rank
 };
 
 class SteadyState {

@@ -56,6 +56,16 @@ struct TorusResult {
   std::vector<PetscReal> circle;                        // M x n, row j = u_j (natural order), rank 0
   std::vector<PetscReal> snapshot_signal;               // the signal DOF along the stroboscopic sequence, rank 0
   PetscInt               signal_dof = -1;
+  // An estimated start refined once (Run, -torus_refine_its): the first pass's start, its Newton
+  // iterates and time; T0, rho0, residual_history and the counts above are then the second pass's.
+  PetscInt               contact_unconverged = 0;    // flow steps whose contact solve did not converge (noise for MFFD)
+  PetscReal              contact_residual_max = 0;
+  PetscInt               retries = 0;                // new starts after Newton did not converge (-torus_retries)
+  std::vector<PetscReal> retry_history;              // ||F||/||u|| where each earlier start ended
+  bool                   refined = false;
+  PetscReal              refine_T0 = 0, refine_rho0 = 0, refine_seconds = 0;
+  PetscInt               refine_iterations = 0, refine_krylov = 0;
+  std::vector<PetscReal> refine_history;
 };
 
 class TorusSolver {
@@ -66,7 +76,7 @@ public:
   explicit TorusSolver(MPI_Comm comm) : comm_(comm) {}
   ~TorusSolver();
   // -torus_points, -torus_f1, -torus_f2, -torus_startup_periods, -torus_snapshots, -torus_steps,
-  // -torus_rtol, -torus_monitor; the SNES and KSP under -torus_ (-torus_snes_max_it, -torus_ksp_*).
+  // -torus_refine_its, -torus_rtol, -torus_monitor; the SNES and KSP under -torus_ (-torus_snes_max_it, -torus_ksp_*).
   PetscErrorCode SetFromOptions();
 
   // Newton on (T.1)-(T.2) from the circle (n x M, column j = u_j), T0 and rho0; s: the scale of
@@ -95,6 +105,14 @@ public:
   static PetscReal EstimateRotation(const Eigen::MatrixXd &z);
 
   PetscInt  points = 15, startup_periods = 300, snapshots = PETSC_DECIDE, steps = 200;
+  // -torus_refine_its: without -torus_f2 (an estimated start), Newton iterations after which the
+  // stroboscopic sequence and the start circle are made again at Newton's T and rho (0: never).
+  PetscInt  refine_its = 0;
+  // -torus_retries: Newton not converged, new starts further on the motion (Run).
+  PetscInt  retries = 1;
+  // -torus_auto: -analyses auto goes on to the torus when the statistical steady state calls the
+  // motion quasi-periodic with two bases (started from those lines and the steady state's end state).
+  PetscBool in_auto = PETSC_TRUE;
   PetscReal f1 = 0, f2 = 0, rtol = 1e-6;
   PetscBool monitor = PETSC_FALSE;
   // -torus_linear_pc: in Run, precondition with the monodromy of the steady sliding linearisation
