@@ -275,7 +275,9 @@ PetscErrorCode DenseLoop(LoopContext &c, Vec U, Vec dU, PetscReal *u, PetscReal 
   PetscFunctionBeginUser;
   auto *kern = dynamic_cast<DenseStepKernelT<N, NC> *>(c.ti.OneRankKernel());
   auto *led  = dynamic_cast<transient::DenseLedger<N, NC> *>(c.book.GetLedger());
-  *done      = kern && led && u && du;
+  // Not when on_record takes the records (the steady state): its slots hold the last state only, and
+  // the hook sees each record through Record.
+  *done = kern && led && u && du && !c.res.streamed;
   if (!*done) PetscFunctionReturn(0);
   const auto step = [&](StepInfo &info) -> PetscErrorCode {
     kern->Step(u, du, r, &info.contact);
