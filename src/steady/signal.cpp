@@ -320,6 +320,8 @@ Classification Classify(const std::vector<double> &f, const std::vector<double> 
 {
   Classification c;
   char           b[256];
+  // One name per line whatever the verdict: the view and the results file pair them up.
+  c.names.assign(f.size(), "not named (lines carry too little power)");
   if (f.empty() || power_in_lines < 0.5 * total_power) {
     const double share = total_power > 0 ? power_in_lines / total_power : 0.0;
     std::snprintf(b, sizeof b, "lines carry %.0f%% of the power (< 50 %%)", 100 * share);

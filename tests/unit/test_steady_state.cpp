@@ -110,6 +110,17 @@ TEST(SteadyState, WhiteNoiseIsBroadband)
   EXPECT_EQ(steady::Analyse(x, kStep, 20).cls.verdict, "broadband");
 }
 
+// Lines that carry less than half the power are not named, but each still has a name: the 807-DOF
+// pad at mu = 0.3, V = 10 m/s (first 50-period chunk) crashed its -steady_monitor view, which
+// printed line i's name from an empty list.
+TEST(SteadyState, WeakLinesStillHaveOneNameEach)
+{
+  const steady::Classification c = steady::Classify({100, 250, 333}, {1, 0.5, 0.2}, 0.645, 10.0, 1.0);
+  EXPECT_EQ(c.verdict, "broadband") << c.evidence;
+  ASSERT_EQ(c.names.size(), 3u);
+  for (const std::string &n : c.names) EXPECT_FALSE(n.empty());
+}
+
 // The brake's lines after 50 periods (size 1, mu = 0.4, V = 5 m/s: 2.6 ms of record, a resolution
 // of 388 Hz): within 3 resolutions 16 573 Hz passed for "2 f1" of 7 741 Hz (15 483 Hz) and every line
 // had a name. With the tolerance covering most of the band the names prove nothing: "unresolved".
