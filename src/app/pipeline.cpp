@@ -226,6 +226,8 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
   Shooting::DefaultPrePeriods(model.Size(), &model_default, &model_tol);
   route.pre_periods    = given > 0 ? given : std::max(Route::kAutoPrePeriods, model_default);
   shooting.pre_periods = route.pre_periods;
+  const PetscInt given_stagnation = shooting.pre_stagnation;
+  if (given_stagnation == PETSC_DECIDE) shooting.pre_stagnation = Route::kAutoStagnation;
   shooting.after_pre_periods = [&](const Shooting::PrePeriodsOutcome &o, Vec U, Vec dU, bool *newton) -> PetscErrorCode {
     PetscFunctionBeginUser;
     route.pre = o;
@@ -236,6 +238,13 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
     if (o.returned)
       std::snprintf(b, sizeof b, "shooting: the flow returns, return distance %.2e < -shoot_pre_tol %g after %" PetscInt_FMT " pre-period(s) of %s, period %.7g s",
                     (double)o.distance, (double)shooting.pre_tol, o.periods, limit.c_str(), (double)o.period);
+    else if (o.stagnated)
+      std::snprintf(b, sizeof b,
+                    "statistical steady state: the flow does not return, its return distance stagnates (best %.2e in the last %" PetscInt_FMT
+                    " pre-periods, %.2e before; -shoot_pre_stagnation %" PetscInt_FMT "), %.2e >= -shoot_pre_tol %g after %" PetscInt_FMT
+                    " pre-period(s) of %s",
+                    (double)o.best_recent, shooting.pre_stagnation, (double)o.best_before, shooting.pre_stagnation, (double)o.distance,
+                    (double)shooting.pre_tol, o.periods, limit.c_str());
     else
       std::snprintf(b, sizeof b,
                     "statistical steady state: the flow does not return, return distance %.2e %s -shoot_pre_tol %g after %" PetscInt_FMT
@@ -248,9 +257,9 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
   };
   struct Unhook {
     Pipeline &p;
-    PetscInt  n;
-    ~Unhook() { p.shooting.after_pre_periods = nullptr, p.shooting.pre_periods = n; }
-  } unhook{*this, given};
+    PetscInt  n, s;
+    ~Unhook() { p.shooting.after_pre_periods = nullptr, p.shooting.pre_periods = n, p.shooting.pre_stagnation = s; }
+  } unhook{*this, given, given_stagnation};
   // A Newton that does not converge from a returned flow is a route, not an error.
   PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
   PetscErrorCode err = Shoot();

@@ -218,6 +218,11 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
   PetscInt  k = 0;
   PetscReal Tm    = 0; // the last measured period, once it agrees with the one before (0: not, or not yet)
   int       loops = 1;
+  // The return distances since the start period last moved, for -shoot_pre_stagnation.
+  const PetscInt         W = pre_stagnation > 0 ? pre_stagnation : 0;
+  std::vector<PetscReal> hist;
+  PetscReal              best_recent = 0, best_before = 0;
+  bool                   stagnated = false;
   while (k < pre_periods) {
     if (interruptible) PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
     sec.SetStep(T / steps);
@@ -238,6 +243,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
                             "(%d loop(s), %.3f x the start period %.7f s): start period and bracket (T/2, 2 T) = (%.6g, %.6g) s moved there\n",
                             k, (double)Tm, loops, (double)(Tm / T0), (double)T0, (double)(0.5 * Tm), (double)(2 * Tm)));
       T = T0_ = Tm, recentred_ = true;
+      hist.clear();
       continue; // this period's return distance was read at the old period
     }
     // The corrected period is used from here on only while it stays near the bracket's centre: far
@@ -249,12 +255,31 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x)
     // closes after two (there, stopping at the first return near T sent Newton to the unstable
     // one-loop cycle at 0.0096261 s instead of the attracting one at 0.0193433 s).
     if (e < pre_tol && Tm > 0) break;
+    // A flow on its way to a cycle halves its return distance in far fewer than W periods (the pads'
+    // flows reach 0.02 in 22-38); one that does not return wanders at the same distances.
+    if (W > 0) {
+      PetscCallCXX(hist.push_back(e));
+      const size_t n = hist.size(), w = (size_t)W;
+      if (n >= 2 * w) {
+        best_recent = *std::min_element(hist.end() - (long)w, hist.end());
+        best_before = *std::min_element(hist.begin(), hist.end() - (long)w);
+        if (best_recent > 0.5 * best_before) {
+          stagnated = true;
+          PetscCall(PetscPrintf(comm_,
+                                "shooting: pre-periods stopped after %" PetscInt_FMT " period(s): the return distance stagnates (best %.2e in the last %" PetscInt_FMT
+                                ", %.2e before; -shoot_pre_stagnation %" PetscInt_FMT ")\n",
+                                k, (double)best_recent, W, (double)best_before, W));
+          break;
+        }
+      }
+    }
   }
   PetscCall(PetscPrintf(comm_,
                         "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
                         ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
                         k, pre_periods, (double)pre_tol, (double)e, (double)T));
   pre_done_ = k, pre_T_ = T, pre_e_ = e, pre_returned_ = e < pre_tol && Tm > 0;
+  pre_stagnated_ = stagnated, pre_best_recent_ = best_recent, pre_best_before_ = best_before;
   PetscCall(PetscLogEventEnd(shoot_ev::pre, 0, 0, 0, 0));
   PetscCall(Pack(U, dU, T, x));
   PetscFunctionReturn(0);

@@ -84,6 +84,11 @@ PetscErrorCode Shooting::SetFromOptions()
                              "each other; beyond 5 % of T that period becomes the start period and the bracket's centre (0: run them "
                              "all; default from the model: 0.05 up to N = 200 DOFs, 0.02 above)",
                              "Shooting", pre_tol, &pre_tol, &pre_tol_set));
+  PetscCall(PetscOptionsInt("-pre_stagnation",
+                            "Stop the -shoot_pre_periods once the best return distance of the last W periods is not below half the "
+                            "best of those before them (at least W before; 0: never; default: off in -analyses shooting, 20 in "
+                            "-analyses auto, where a flow that does not return only delays the statistical steady state)",
+                            "Shooting", pre_stagnation, &pre_stagnation, nullptr));
   SquealOptionsReal("-deflate_power",
                     "Deflate the sliding equilibrium Z_e (a trivial root: periodic with any T): Newton on m(Z0) H with "
                     "m = (d / d_0)^-p + shift, d = |(omega_0 (U0 - U_e), dU0)|, d_0 its value at the start, and a "
@@ -387,7 +392,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpAt(T0));
   PetscCall(SetUpNewton());
   PetscCall(CreateState(x.out()));
-  pre_e_ = 0, pre_returned_ = false;
+  pre_e_ = 0, pre_returned_ = false, pre_stagnated_ = false;
   if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, x));
   else PetscCall(Pack(U0, dU0, T0, x));
   if (after_pre_periods) {
@@ -397,7 +402,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(VecDuplicate(U0, U.out()));
     PetscCall(VecDuplicate(dU0, dU.out()));
     PetscCall(Unpack(x, U, dU, &T));
-    PetscCall(after_pre_periods({pre_done_, pre_e_, T, pre_measured_, pre_returned_}, U, dU, &newton));
+    PetscCall(after_pre_periods({pre_done_, pre_e_, T, pre_measured_, pre_returned_, pre_stagnated_, pre_best_recent_, pre_best_before_}, U, dU, &newton));
     if (!newton) {
       res.reason              = "Newton not started (after_pre_periods)";
       res.period              = T;

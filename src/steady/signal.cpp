@@ -420,6 +420,20 @@ Analysis Analyse(const std::vector<double> &x, double dt, long batches)
   return a;
 }
 
+std::string BandNote(const Analysis &a, double band_hz)
+{
+  if (a.lines.empty() || !(band_hz > 0) || !std::isfinite(band_hz)) return {};
+  const double f = !a.cls.bases.empty() ? a.cls.bases[0]
+                                        : a.lines[(size_t)(std::max_element(a.amplitudes.begin(), a.amplitudes.end()) - a.amplitudes.begin())];
+  if (!(f > 1.02 * band_hz)) return {};
+  char b[384];
+  std::snprintf(b, sizeof b,
+                "the motion's base frequency, %.6g Hz, lies above the stability band (up to %.6g Hz): the unstable modes that carry it are "
+                "not among those projected on; raise -stab_fmax above %.6g Hz (the reduction's band permitting) to see them",
+                f, band_hz, f);
+  return b;
+}
+
 bool ModalProjection::SetUp(const std::vector<std::vector<double>> &re, const std::vector<std::vector<double>> &im, size_t every,
                             std::string *why)
 {

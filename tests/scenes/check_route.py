@@ -32,6 +32,8 @@ def main():
                     help="a quasi-periodic verdict must go on to the torus (-torus_auto): converged, with its f1 and "
                          "modulation within --ftol Hz of the steady state's two bases; or tried, either way said in /route")
     ap.add_argument("--ftol", type=float, default=1.0)
+    ap.add_argument("--reason", help="a text /route's reason must contain")
+    ap.add_argument("--max-pre-periods", type=int, help="the pre-periods must stop before this many")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
@@ -50,6 +52,10 @@ def main():
         route = g.attrs["route"]
         if route != a.route:
             fail(f"route {route}, expected {a.route} ({g.attrs['reason']})")
+        if a.reason and a.reason not in str(g.attrs["reason"]):
+            fail(f"the route's reason does not say '{a.reason}': {g.attrs['reason']}")
+        if a.max_pre_periods is not None and int(g.attrs["pre_periods"]) >= a.max_pre_periods:
+            fail(f"{int(g.attrs['pre_periods'])} pre-periods, expected fewer than {a.max_pre_periods} ({g.attrs['reason']})")
         d, tol = float(g.attrs["return_distance"]), float(g.attrs["pre_tol"])
         if (route == "shooting") != (d < tol) and not int(g.attrs["newton_failed"]):
             fail(f"route {route} with return distance {d:.3g} against -shoot_pre_tol {tol:g}")
@@ -96,6 +102,10 @@ def check_torus(a, res, g, s, lines):
     if verdict != "quasi-periodic":
         if tor.startswith("converged") or tor.startswith("not converged"):
             fail(f"verdict {verdict} but /route torus = {tor}")
+        return f"; no torus ({tor})"
+    if not int(at["converged"]):
+        if not tor.startswith("not attempted"):
+            fail(f"statistics not converged, yet /route torus = '{tor}'")
         return f"; no torus ({tor})"
     said = [ln for ln in lines if ln.startswith("route: torus: ")]
     if tor not in ("converged", "not converged") or not said:

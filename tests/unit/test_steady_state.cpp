@@ -110,6 +110,29 @@ TEST(SteadyState, WhiteNoiseIsBroadband)
   EXPECT_EQ(steady::Analyse(x, kStep, 20).cls.verdict, "broadband");
 }
 
+// The 807-DOF pad at mu = 0.3, V = 10 m/s with -stab_fmax 12000 settled at 22.1 kHz: the note says
+// the band misses the motion; a base inside the band, or a strongest line that is a harmonic of
+// one, says nothing.
+TEST(SteadyState, ABaseAboveTheStabilityBandIsNamed)
+{
+  steady::Analysis a;
+  a.lines = {22105.9, 22832.2, 726.6}, a.amplitudes = {5.1e-5, 2.7e-5, 2.1e-6};
+  a.cls = steady::Classify(a.lines, a.amplitudes, 1.0, 1.0, 1.0);
+  const std::string note = steady::BandNote(a, 12000.0);
+  EXPECT_NE(note.find("22105.9 Hz"), std::string::npos) << note;
+  EXPECT_NE(note.find("-stab_fmax"), std::string::npos) << note;
+  EXPECT_TRUE(steady::BandNote(a, 30000.0).empty());
+  EXPECT_TRUE(steady::BandNote(a, 0.0).empty()); // no band edge: nothing to say
+  steady::Analysis h;                            // 2 f1 strongest, f1 in the band
+  h.lines = {17325.0, 8662.5}, h.amplitudes = {2.6e-6, 1.0e-6};
+  h.cls = steady::Classify(h.lines, h.amplitudes, 1.0, 1.0, 1.0);
+  EXPECT_TRUE(steady::BandNote(h, 12000.0).empty()) << steady::BandNote(h, 12000.0);
+  steady::Analysis w; // lines too weak to be named: the strongest line decides
+  w.lines = {22105.9, 8000.0}, w.amplitudes = {5e-5, 1e-6};
+  w.cls = steady::Classify(w.lines, w.amplitudes, 0.1, 1.0, 1.0);
+  EXPECT_FALSE(steady::BandNote(w, 12000.0).empty());
+}
+
 // Lines that carry less than half the power are not named, but each still has a name: the 807-DOF
 // pad at mu = 0.3, V = 10 m/s (first 50-period chunk) crashed its -steady_monitor view, which
 // printed line i's name from an empty list.

@@ -74,6 +74,9 @@ public:
   // not converge goes there too. One line says which and why.
   struct Route {
     static constexpr PetscInt   kAutoPrePeriods = 20;
+    // -shoot_pre_stagnation unless given: the 2625-DOF pad at mu = 0.3, V = 10 m/s ran its 200
+    // pre-periods (74 s) to a return distance of 9.4e-2 before the statistics started.
+    static constexpr PetscInt   kAutoStagnation = 20;
     bool                        shooting = false, newton_ran = false, newton_failed = false;
     Shooting::PrePeriodsOutcome pre;
     PetscInt                    pre_periods = 0;  // the limit they ran with

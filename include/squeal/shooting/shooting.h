@@ -107,6 +107,8 @@ public:
     PetscInt  periods  = 0;
     PetscReal distance = 0, period = 0, measured_period = 0; // last return distance; T they ended with; 0: none measured
     bool      returned = false; // the return criterion held: distance < -shoot_pre_tol with the measured period
+    bool      stagnated = false; // stopped by -shoot_pre_stagnation: no progress towards a return
+    PetscReal best_recent = 0, best_before = 0; // ... the best return distances of the last window and before it
   };
   std::function<PetscErrorCode(const PrePeriodsOutcome &, Vec U, Vec dU, bool *newton)> after_pre_periods;
   PetscErrorCode Write(const ShootingResult &res, io::H5Writer &out) const;
@@ -178,6 +180,11 @@ public:
   // 6 / 5 Newton iterations; on the 31119-DOF pad 0.2 (6 periods) leaves Newton wandering at
   // ||H||/||Z0|| ~ 1 and 0.02 (38) converges in 5.
   PetscReal pre_tol          = PETSC_DECIDE;
+  // -shoot_pre_stagnation W: stop the pre-periods once the best return distance of the last W is not
+  // below half the best before them (at least W before; a move of the start period starts afresh).
+  // PETSC_DECIDE: off in -analyses shooting, which asks for a cycle; -analyses auto takes
+  // Pipeline::Route::kAutoStagnation, where a flow that does not return only delays the statistics.
+  PetscInt  pre_stagnation   = PETSC_DECIDE;
   // -shoot_deflate_power, -shoot_deflate_shift: deflation of the sliding equilibrium Z_e (Farrell,
   // Birkisson & Funke 2015): SNES solves m(Z0) (H, p) = 0, m = (d / d_0)^-p + shift,
   // d = |(omega_0 (U0 - U_e), dU0)|, d_0 at the start, so that neither Newton nor a globalisation on
@@ -261,6 +268,8 @@ private:
   PetscReal       pre_T_    = 0; // ... and the period they ended with
   PetscReal       pre_e_    = 0;     // ... their last return distance
   bool            pre_returned_ = false; // ... and whether they stopped on the return criterion
+  bool            pre_stagnated_ = false; // ... or on -shoot_pre_stagnation, with the two best distances
+  PetscReal       pre_best_recent_ = 0, pre_best_before_ = 0;
   void           *ksp_default_ctx_ = nullptr; // KSPConvergedDefault's, wrapped by KrylovConverged
   PetscReal       rnorm0_          = 0;
   bool            confirm_only_    = false; // this Newton step only confirms |dT| / T < eps2

@@ -83,6 +83,10 @@ struct Analysis {
 };
 Analysis Analyse(const std::vector<double> &x, double dt, long batches);
 
+// Empty, or why the stability band misses the motion: its base frequency (the first base, else the
+// strongest line) lies more than 2 % above `band_hz` (the band's upper edge; <= 0 or inf: none).
+std::string BandNote(const Analysis &a, double band_hz);
+
 // Which linear modes carry the motion: the least-squares fit of the state records u_i (mean over
 // the window removed) on the real basis B = [Re phi_1, Im phi_1, ..., Re phi_k, Im phi_k] (one
 // column for a real mode), u_i - ubar ~ sum_j Re phi_j a_ji + Im phi_j b_ji = Re(phi_j q_ji) with
@@ -160,6 +164,9 @@ struct SteadyStateResult {
   steady::ModalProjection           projection;
   steady::ModalProjection::Result   modal;
   std::string                       modal_note;
+  // Non-empty (rank 0) when the motion's base frequency lies above the stability band: the unstable
+  // modes that carry it are then not among those projected on, and the note names the option.
+  std::string                       band_note;
   bool                   converged = false, complete = false;
   std::string            interrupted; // non-empty: a signal stopped the run, and where
   // Memory (rank 0): per analysed record, the bytes of t, x, rn and the projection's values; and the
