@@ -18,13 +18,13 @@ Checks:
     multiplier is within 1e-2 of 1."""
 import argparse
 import os
-import subprocess
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
 from squeal.results import Results  # noqa: E402
+import scene_run  # noqa: E402
 
 
 def crossings(t, y, v, level, hyst):
@@ -66,13 +66,9 @@ def main():
     ap.add_argument("--cycles", type=int, default=20, help="transient cycles compared (the last ones)")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
-    cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
+    cmd = scene_run.command(a.cmd)
     if cmd:
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        sys.stdout.write(r.stdout)
-        sys.stderr.write(r.stderr)
-        if r.returncode != 0:
-            sys.exit(f"check_pad_cycle: squeal exited with {r.returncode}")
+        r = scene_run.run(cmd, "check_pad_cycle")
     fails = []
     with Results(a.shooting or a.output) as rs:
         s = rs.shooting

@@ -5,9 +5,7 @@ what that route wrote: with --route shooting a converged /shooting; with --route
 levels and welch) on the records it wrote, its RMS inside its own interval, and --verdict among
 the allowed ones."""
 import argparse
-import math
 import os
-import subprocess
 import sys
 
 import numpy as np
@@ -16,6 +14,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "..", "scripts"))
 from squeal.results import Results  # noqa: E402
 import steady_state as ss  # noqa: E402
+import scene_run  # noqa: E402
 
 
 def fail(msg):
@@ -36,12 +35,8 @@ def main():
     ap.add_argument("--max-pre-periods", type=int, help="the pre-periods must stop before this many")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
-    cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    sys.stdout.write(r.stdout)
-    sys.stderr.write(r.stderr)
-    if r.returncode != 0:
-        fail(f"{' '.join(cmd[:3])} ... exited with {r.returncode}")
+    cmd = scene_run.command(a.cmd)
+    r = scene_run.run(cmd, "check_route")
     lines = [ln for ln in r.stdout.splitlines() if ln.startswith("route: ")]
     if not lines:
         fail("no 'route:' line printed")

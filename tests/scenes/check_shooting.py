@@ -5,21 +5,17 @@ a second command (after a second --) and --other-output, also runs that command 
 same period and Z0 (e.g. serial against mpiexec -n 2); --same-floquet also the same multipliers."""
 import argparse
 import os
-import subprocess
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
 from squeal.results import Results  # noqa: E402
+import scene_run  # noqa: E402
 
 
 def run(cmd):
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    sys.stdout.write(r.stdout)
-    sys.stderr.write(r.stderr)
-    if r.returncode != 0:
-        sys.exit(f"check_shooting: {' '.join(cmd[:3])} ... exited with {r.returncode}")
+    scene_run.run(cmd, "check_shooting")
 
 
 def read(path):
@@ -37,7 +33,7 @@ def main():
     ap.add_argument("--same-floquet", action="store_true")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
-    cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
+    cmd = scene_run.command(a.cmd)
     cmds = [cmd]
     if "--" in cmd:
         k = cmd.index("--")

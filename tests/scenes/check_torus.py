@@ -4,10 +4,11 @@ below --rtol, and its two frequencies (f1 = 1/T and the modulation f1 min(rho, 1
 lines of the transient's spectrum given as references (--f1, --fmod, from the statistical steady
 state of a long transient: -analyses steady, docs/steady-state.md), within --ftol Hz."""
 import argparse
-import subprocess
 import sys
 
 import h5py
+
+import scene_run
 
 
 def fail(msg):
@@ -23,12 +24,8 @@ def main():
     ap.add_argument("--rtol", type=float, default=1e-6)
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
-    cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    sys.stdout.write(r.stdout)
-    sys.stderr.write(r.stderr)
-    if r.returncode != 0:
-        fail(f"{' '.join(cmd[:3])} ... exited with {r.returncode}")
+    cmd = scene_run.command(a.cmd)
+    scene_run.run(cmd, "check_torus")
     with h5py.File(a.output, "r") as f:
         if "torus" not in f:
             fail("no /torus group")

@@ -6,13 +6,13 @@ the lag after which the displacements of the last period return to themselves (l
 over its records, displacements between records by their cubic Hermite interpolant)."""
 import argparse
 import os
-import subprocess
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
 from squeal.results import Results  # noqa: E402
+import scene_run  # noqa: E402
 
 
 def hermite(t, U, V, tq):
@@ -58,12 +58,8 @@ def main():
                     help="settled cycle: relative agreement of the period with the state's return lag")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
-    cmd = a.cmd[1:] if a.cmd and a.cmd[0] == "--" else a.cmd
-    run = subprocess.run(cmd, capture_output=True, text=True)
-    sys.stdout.write(run.stdout)
-    sys.stderr.write(run.stderr)
-    if run.returncode != 0:
-        sys.exit(f"check_transient: squeal exited with {run.returncode}")
+    cmd = scene_run.command(a.cmd)
+    scene_run.run(cmd, "check_transient")
     fails = []
     with Results(a.output) as r:
         g = r.transient
