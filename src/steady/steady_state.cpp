@@ -38,7 +38,7 @@ PetscErrorCode SteadyState::SetFromOptions()
                                     "the DOF that moves most, for which the first chunk keeps its displacements; given: no state is kept)",
                             "SteadyState", dof, &dof, nullptr));
   PetscCall(PetscOptionsBool("-from_mode",
-                             "-analyses auto's statistical route starts from the mode (as the transient; false: from the pre-periods' end state)",
+                             "-analyses auto's statistical route starts from the mode (as the transient) instead of the pre-periods' end state",
                              "SteadyState", from_mode, &from_mode, nullptr));
   PetscCall(PetscOptionsName("-monitor", "After each chunk: the start-up cut, levels, lines and verdict so far ([viewer], default stdout)",
                              "SteadyState", &mon));

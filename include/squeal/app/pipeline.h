@@ -70,7 +70,7 @@ public:
   // kAutoPrePeriods and the model's default, Shooting::DefaultPrePeriods) run from the estimate as
   // shooting's; when their return criterion holds (return distance below -shoot_pre_tol with a
   // measured period) Newton goes on from there as in Shoot, else the route is the statistical
-  // steady state (Settle, from the mode by default: -steady_from_mode). A returned flow whose Newton does
+  // steady state (Settle, from the pre-periods' end state unless -steady_from_mode). A returned flow whose Newton does
   // not converge goes there too. One line says which and why.
   struct Route {
     static constexpr PetscInt   kAutoPrePeriods = 20;
