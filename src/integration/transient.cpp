@@ -111,10 +111,11 @@ PetscErrorCode Capped(MPI_Comm comm, const ThetaIntegrator &ti, const StepInfo &
 class StatusOf {
 public:
   StatusOf(const ContactSet &cs, const LocalContactSolver &ls) : cs_(cs), ls_(ls) {}
-  template <class Int>
+  // NC: the number of points when known at compile time (Run's loop for the kernel's fixed sizes).
+  template <int NC = Eigen::Dynamic, class Int>
   EIGEN_ALWAYS_INLINE void operator()(const Eigen::VectorXd &r, Int *status)
   {
-    const Eigen::Index nc          = r.size() / 3;
+    const Eigen::Index nc          = NC == Eigen::Dynamic ? r.size() / 3 : NC;
     const bool         rectilinear = cs_.law == FrictionLaw::Rectilinear;
     bool               unsure      = false;
     for (Eigen::Index c = 0; c < nc; ++c) {
@@ -216,6 +217,10 @@ PetscErrorCode Loop(LoopContext &c, StepFn &&step, Dense dense, const PetscReal 
   transient::Ledger *led    = c.book.GetLedger();
   StepInfo           info;
   PetscInt           fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT;
+  // Dense: the next record's slots, moved on by a record's sizes after each (Next() again after a
+  // record made by Event).
+  transient::Bookkeeping::Slot slot{};
+  if constexpr (kDense) slot = c.book.Next();
   PetscFunctionBeginUser;
   for (PetscInt i = 1; i <= nsteps; ++i) {
     *ierr = step(info);
@@ -234,19 +239,24 @@ PetscErrorCode Loop(LoopContext &c, StepFn &&step, Dense dense, const PetscReal 
     if (rec || mon) {
       bool nan = false;
       if constexpr (kDense) {
+        using D                = std::remove_pointer_t<Dense>;
+        constexpr int kN = D::kN, kNC = D::kNC;
         if (!mon) {
-        PetscReal tot[5];
-        dense->TotalsAt(u, du, tot);
-        nan = !std::isfinite(tot[0] + tot[1]);
-        if (!nan) {
-          const transient::Bookkeeping::Slot s = c.book.Next();
-          *s.t                                  = i * h;
-          dense->CopyAt(u, du, r.data(), s.U, s.V, s.R);
-          c.status_of(r, s.status);
-          s.energy[0] = tot[0] + tot[1], s.energy[1] = tot[2], s.energy[2] = tot[3], s.energy[3] = tot[4];
-          c.book.Commit();
+          PetscReal tot[5];
+          dense->TotalsAt(u, du, tot);
+          nan = !std::isfinite(tot[0] + tot[1]);
+          if (!nan) {
+            *slot.t = i * h;
+            dense->CopyAt(u, du, r.data(), slot.U, slot.V, slot.R);
+            c.status_of.template operator()<kNC>(r, slot.status);
+            slot.energy[0] = tot[0] + tot[1], slot.energy[1] = tot[2], slot.energy[2] = tot[3], slot.energy[3] = tot[4];
+            c.book.Commit();
+            slot.t += 1, slot.U += kN, slot.V += kN, slot.R += 3 * kNC, slot.energy += 4, slot.status += kNC;
+          }
+        } else {
+          PetscCall(Event(c.book, c.status_of, i, h, rec, mon, info.contact.iterations, r, &nan));
+          slot = c.book.Next();
         }
-        } else PetscCall(Event(c.book, c.status_of, i, h, rec, mon, info.contact.iterations, r, &nan));
       } else PetscCall(Event(c.book, c.status_of, i, h, rec, mon, info.contact.iterations, r, &nan));
       if (nan) {
         c.nan_step = i;

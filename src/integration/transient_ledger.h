@@ -66,6 +66,10 @@ protected:
 // cost a call, a frame and the reloads of every member per step.
 template <int N, int NC>
 class DenseLedger final : public Ledger {
+public:
+  static constexpr int kN = N, kNC = NC; // for Run's loop on one rank (transient.cpp)
+
+private:
   static constexpr int M = NC == Eigen::Dynamic ? Eigen::Dynamic : 3 * NC;
   using MatN             = Eigen::Matrix<PetscReal, N, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
   using MatH             = Eigen::Matrix<PetscReal, M, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
@@ -88,6 +92,10 @@ public:
     for (PetscInt i = 0; i < n_; ++i) F_[i] = PetscRealPart(f[i]);
     PetscCallAbort(PETSC_COMM_SELF, VecRestoreArrayRead(model.F, &f));
     diag_m_ = IsDiagonal(M_), diag_c_ = IsDiagonal(C_);
+    ht_identity_ = Ht_.rows() == Ht_.cols() && Ht_ == MatH::Identity(Ht_.rows(), Ht_.cols());
+    fidx_.resize(n_);
+    for (PetscInt i = 0; i < n_; ++i)
+      if (F_[i] != 0) fidx_[nf_++] = (int)i;
     prev_  = Eigen::Map<const VecN>(u_, n_);
     start_ = prev_;
     dq_.resize(n_);
@@ -114,18 +122,24 @@ public:
     for (PetscInt i = 0; i < n; ++i) dq[i] = u[i] - prev_[i], prev_[i] = u[i]; // h ub
     if (damped_) damping_ += (diag_c_ ? Diagonal(C_, dq) : Quadratic(C_, dq)) / h_;
     PetscReal wr = 0;
-    SQUEAL_UNROLL
-    for (PetscInt k = 0; k < m; ++k) wr += Row(Ht_, k, dq) * r[k];
+    if (ht_identity_) { // H = I (the 3-DOF model): Row(Ht_, k, dq) is dq[k], exactly
+      SQUEAL_UNROLL
+      for (PetscInt k = 0; k < m; ++k) wr += dq[k] * r[k];
+    } else {
+      SQUEAL_UNROLL
+      for (PetscInt k = 0; k < m; ++k) wr += Row(Ht_, k, dq) * r[k];
+    }
     reactions_ += wr;
   }
 
   // Totals at the state (u, du).
   EIGEN_ALWAYS_INLINE void TotalsAt(const PetscReal *u, const PetscReal *du, PetscReal s[5]) const
   {
-    const PetscInt n  = Size();
-    PetscReal      wf = 0;
-    SQUEAL_UNROLL
-    for (PetscInt i = 0; i < n; ++i) wf += F_[i] * (u[i] - start_[i]);
+    PetscReal wf = 0;
+    for (int q = 0; q < nf_; ++q) { // F's non-zeros only, in index order: the zeros add nothing to a finite sum
+      const int i = fidx_[q];
+      wf += F_[i] * (u[i] - start_[i]);
+    }
     s[0] = 0.5 * (diag_m_ ? Diagonal(M_, du) : Quadratic(M_, du));
     s[1] = 0.5 * Quadratic(K_, u);
     s[2] = damping_, s[3] = reactions_, s[4] = wf;
@@ -200,6 +214,9 @@ private:
   const PetscReal  h_;
   const bool       damped_;
   bool             diag_m_ = false, diag_c_ = false; // M, C diagonal: Diagonal for Quadratic
+  bool             ht_identity_ = false;             // H^T = I: no product by it in the works
+  Eigen::Matrix<int, N, 1> fidx_;                    // the indices of F's non-zeros, nf_ of them
+  int              nf_ = 0;
   const PetscReal *u_, *du_;
   MatN             M_, C_, K_;
   MatH             Ht_;

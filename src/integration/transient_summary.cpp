@@ -101,6 +101,7 @@ private:
     return Hermite(U(k, j), U(k + 1, j), has_v_ ? res_.V[k * N_ + j] : chord, has_v_ ? res_.V[(k + 1) * N_ + j] : chord, h);
   }
   void      Extrema(PetscInt j, size_t a, size_t b, PetscReal &lo, PetscReal &hi) const;
+  void      Refine(PetscInt j, size_t a, size_t b, size_t klo, size_t khi, PetscReal &lo, PetscReal &hi) const;
   void      Cross(PetscReal depth);
   PetscReal Return(size_t e, size_t m) const;
   PetscReal MedianReturn(size_t m) const;
@@ -111,6 +112,7 @@ private:
   const size_t           from_;
   const bool             has_v_;
   std::vector<PetscReal> mean_;           // per DOF, over the window
+  std::vector<size_t>    klo_;            // per DOF, the record of its smallest value in the window
   PetscInt               best_ = 0;       // the DOF that moves most
   PetscReal              c_ = 0, dt_ = 0; // the section's level (best_'s mean), the record spacing
   std::vector<Crossing>  cr_;
@@ -129,6 +131,12 @@ void CycleReader::Extrema(PetscInt j, size_t a, size_t b, PetscReal &lo, PetscRe
     if (U(k, j) < U(klo, j)) klo = k;
     if (U(k, j) > U(khi, j)) khi = k;
   }
+  Refine(j, a, b, klo, khi, lo, hi);
+}
+
+// Extrema's refinement of the recorded extrema klo, khi of DOF j over records a..b.
+void CycleReader::Refine(PetscInt j, size_t a, size_t b, size_t klo, size_t khi, PetscReal &lo, PetscReal &hi) const
+{
   lo = U(klo, j), hi = U(khi, j);
   for (size_t k : {klo, khi})
     for (size_t i = k > a ? k - 1 : a; i <= k && i < b; ++i) {
@@ -138,17 +146,33 @@ void CycleReader::Extrema(PetscInt j, size_t a, size_t b, PetscReal &lo, PetscRe
     }
 }
 
-// Peak-to-peak and mean per DOF; the section DOF, the one that moves most.
+// Peak-to-peak and mean per DOF; the section DOF, the one that moves most. One pass over the
+// window's records for every DOF (the recorded extrema and the means, each DOF's sums in record
+// order as a pass per DOF would make them), then each DOF's extrema refined as Extrema does.
 void CycleReader::Signal(TransientSummary &s)
 {
   s.peak_to_peak.assign(N_, 0.0);
   mean_.assign(N_, 0.0);
+  klo_.assign(N_, from_);
+  std::vector<size_t> khi(N_, from_);
+  const PetscReal     nw = (PetscReal)(nr_ - from_);
+  const PetscReal    *u  = res_.U.data();
+  PetscReal          *mean = mean_.data();
+  size_t             *klo = klo_.data(), *kh = khi.data();
+  for (size_t k = from_; k < nr_; ++k) {
+    const PetscReal *uk = u + k * N_;
+    for (PetscInt j = 0; j < N_; ++j) {
+      const PetscReal x = uk[j];
+      if (x < u[klo[j] * N_ + j]) klo[j] = k;
+      if (x > u[kh[j] * N_ + j]) kh[j] = k;
+      mean[j] += x / nw;
+    }
+  }
   best_ = 0;
   for (PetscInt j = 0; j < N_; ++j) {
     PetscReal lo, hi;
-    Extrema(j, from_, nr_ - 1, lo, hi);
+    Refine(j, from_, nr_ - 1, klo[j], kh[j], lo, hi);
     s.peak_to_peak[j] = hi - lo;
-    for (size_t k = from_; k < nr_; ++k) mean_[j] += U(k, j) / (PetscReal)(nr_ - from_);
     if (s.peak_to_peak[j] > s.peak_to_peak[best_]) best_ = j;
   }
   s.signal_dof = best_;
@@ -185,8 +209,8 @@ void CycleReader::Section()
 {
   c_  = mean_[best_];
   dt_ = (res_.t[nr_ - 1] - res_.t[from_]) / (PetscReal)(nr_ - 1 - from_);
-  PetscReal depth = 0;
-  for (size_t k = from_; k < nr_; ++k) depth = std::max(depth, c_ - U(k, best_));
+  // The largest c_ - U over the window, c_ - its smallest U (the rounded difference is monotone in U).
+  PetscReal depth = std::max<PetscReal>(0, c_ - U(klo_[best_], best_));
   Cross(depth);
   if (cr_.size() >= 2) {
     const PetscReal T1 = (cr_.back().t - cr_.front().t) / (PetscReal)(cr_.size() - 1);
