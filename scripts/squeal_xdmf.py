@@ -11,8 +11,14 @@ Writes, next to PREFIX (default: RESULTS without .h5), one time series each:
   PREFIX_cycle.xdmf     the limit cycle's period (/shooting/orbit), time in s;
   PREFIX_transient.xdmf the transient's records (/transient), time in s.
 Each has the point field "u" (m; modes normalised so that the largest contact tangential
-component is 1) and "has_value" (1 where the model holds the node's DOFs: a Craig-Bampton
-reduction keeps only the contact nodes' DOFs physical, the rest are 0 and drawn at rest).
+component is 1) and "has_value" (1 where the node has a value).
+
+A reduced model's results are written expanded to the whole mesh when the file has them
+(/expanded and /mesh/dof_full: squeal keeps the reduction's expansion for a model with a mesh,
+-reduce_expand): the unstable modes, the cycle and the transient's last records
+(-reduce_expand_records). Without them, or with --no-expanded, only the DOFs the reduced model keeps
+physical are on the mesh (Craig-Bampton: the contact nodes'); the others have has_value 0 and are
+drawn at rest.
 """
 import argparse
 import os
@@ -62,6 +68,8 @@ def main(argv=None, prog=None):
     ap.add_argument("-o", "--prefix")
     ap.add_argument("--phases", type=int, default=24)
     ap.add_argument("--modes", type=int, default=3, help="unstable modes to write, most unstable first (default 3)")
+    ap.add_argument("--no-expanded", action="store_true",
+                    help="write the reduced model's own vectors (contact nodes only) even when /expanded is there")
     a = ap.parse_args(argv)
     prefix = a.prefix or os.path.splitext(a.results)[0]
     written = []
@@ -70,19 +78,27 @@ def main(argv=None, prog=None):
             sys.exit(f"squeal_xdmf.py: error: '{a.results}' has no /mesh group: only models read from an FE code "
                      "(-model_type calculix) carry their mesh")
         points = r.mesh["x"]
-        dof = r.mesh["dof"].astype(np.int64)
         cells = [(XDMF_TO_MESHIO[name], r.mesh["cells"][name]) for name in r.mesh["cells"].keys()]
+        expanded = "expanded" in r and "dof_full" in r.mesh and not a.no_expanded
+        dof = (r.mesh["dof_full"] if expanded else r.mesh["dof"]).astype(np.int64)
         s = r.stability
-        if s is not None and "unstable" in s and "modes" in s:
-            for rank, m in enumerate(s.unstable[:a.modes]):
-                phi = s.mode(m)
-                frames = [(j / a.phases, np.real(phi * np.exp(2j * np.pi * j / a.phases))) for j in range(a.phases)]
-                written.append(write_series(f"{prefix}_mode{rank}.xdmf", points, cells, dof, frames))
-        if "shooting/orbit/U" in r:
-            t, U = r.shooting["orbit/t"], r.shooting["orbit/U"]
+        if expanded and "expanded/modes/re" in r:
+            re, im = r.h5["expanded/modes/re"][()], r.h5["expanded/modes/im"][()]
+            shapes = [re[:, j] + 1j * im[:, j] for j in range(re.shape[1])]
+        elif not expanded and s is not None and "unstable" in s and "modes" in s:
+            shapes = [s.mode(m) for m in s.unstable]
+        else:
+            shapes = []
+        for rank, phi in enumerate(shapes[:a.modes]):
+            frames = [(j / a.phases, np.real(phi * np.exp(2j * np.pi * j / a.phases))) for j in range(a.phases)]
+            written.append(write_series(f"{prefix}_mode{rank}.xdmf", points, cells, dof, frames))
+        orbit = "expanded/orbit" if expanded else "shooting/orbit"
+        if f"{orbit}/U" in r:
+            t, U = r.h5[f"{orbit}/t"][()], r.h5[f"{orbit}/U"][()]
             written.append(write_series(f"{prefix}_cycle.xdmf", points, cells, dof, zip(t, U)))
-        if "transient/U" in r and "transient/t" in r:
-            t, U = r.transient["t"], r.transient["U"]
+        records = "expanded/transient" if expanded and "expanded/transient/U" in r else "transient"
+        if f"{records}/U" in r and f"{records}/t" in r:
+            t, U = r.h5[f"{records}/t"][()], r.h5[f"{records}/U"][()]
             written.append(write_series(f"{prefix}_transient.xdmf", points, cells, dof, zip(t, U)))
     if not written:
         sys.exit(f"squeal_xdmf.py: error: '{a.results}' holds no unstable mode, cycle or transient to write")

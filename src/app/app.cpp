@@ -1,4 +1,5 @@
 #include "squeal/app/app.h"
+#include "squeal/app/expanded.h"
 #include "squeal/app/pipeline.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
@@ -83,6 +84,13 @@ PetscErrorCode WriteMesh(const io::FeMesh &mesh, io::H5Writer &out)
                                "row of the model's vectors holding each node's x, y, z translation; -1: none (constrained, "
                                "or not kept physical by a reduction)"));
   PetscCall(out.WriteAttribute("/mesh", "partial", (PetscInt)mesh.partial));
+  if (!mesh.dof_full.empty()) {
+    for (hsize_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) dof[3 * i + k] = mesh.dof_full[i][k];
+    PetscCall(out.WriteIntArray("/mesh/dof_full", {n, 3}, dof.data()));
+    PetscCall(out.WriteAttribute("/mesh/dof_full", "meaning",
+                                 "row of each node's x, y, z in the full model's vectors (/expanded); -1: constrained"));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -299,7 +307,10 @@ PetscErrorCode ShootOrSettle(Pipeline &p, io::H5Writer &out, const Stages &st)
   PetscCall(PetscLogStagePush(st.shooting));
   PetscErrorCode err = p.ShootOrSettle(route);
   PetscCall(PetscLogStagePop());
-  if (route.newton_ran) PetscCall(p.shooting.Write(p.cycle, out)); // also the best iterate of a failed Newton
+  if (route.newton_ran) { // also the best iterate of a failed Newton
+    PetscCall(p.shooting.Write(p.cycle, out));
+    PetscCall(WriteExpandedOrbit(p.model, p.cycle, out));
+  }
   PetscCall(err);
   PetscCall(out.WriteAttribute("/route", "route", route.shooting ? "shooting" : "steady_state"));
   PetscCall(out.WriteAttribute("/route", "reason", route.why.c_str()));
@@ -351,7 +362,10 @@ PetscErrorCode RunEnergyAndCycle(Pipeline &p, const Request &req, io::H5Writer &
                           Num(p.estimate.T0).c_str()));
   PetscErrorCode serr = p.Shoot();
   PetscCall(PetscLogStagePop());
-  if (p.estimate.found) PetscCall(p.shooting.Write(p.cycle, out)); // also the best iterate of a failed run
+  if (p.estimate.found) { // also the best iterate of a failed run
+    PetscCall(p.shooting.Write(p.cycle, out));
+    PetscCall(WriteExpandedOrbit(p.model, p.cycle, out));
+  }
   PetscCall(serr);
   PetscCall(p.shooting.View(p.cycle, PETSC_VIEWER_STDOUT_(comm)));
   PetscCall(Checkpoint(comm, out, "shooting"));
@@ -388,6 +402,7 @@ PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, 
     PetscCall(p.stab.View(p.stability, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(p.stab.ViewFromOptions(p.stability));
     PetscCall(WriteStability(p.stability, out));
+    PetscCall(WriteExpandedModes(p.model, p.stability, out));
     PetscCall(Checkpoint(comm, out, "the stability analysis"));
     PetscCall(ReportStability(comm, p.stability, req));
   }
@@ -413,6 +428,7 @@ PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, 
     PetscCall(PetscLogStagePop());
     // Whatever was recorded is written, also when the run stopped early.
     PetscCall(p.transient.Write(tr, out));
+    PetscCall(WriteExpandedRecords(p.model, tr, out));
     PetscCall(terr);
     PetscCall(p.theta.View(PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(p.transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
@@ -485,6 +501,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   }
   Pipeline    pl(comm);
   Model      &model = pl.model;
+  pl.expand_results = true;
   std::string export_dir;
   bool        reduced = false;
   PetscCall(pl.BuildModel(&export_dir));

@@ -71,6 +71,8 @@ PetscErrorCode Pipeline::Reduce(bool *reduced)
   reduce = reduce && !help;
   if (reduced) *reduced = reduce;
   if (!reduce) PetscFunctionReturn(0);
+  const PetscInt expand = cb.ExpansionOption();
+  PetscCall(cb.SetKeepExpansion(expand_results && (expand < 0 ? (bool)model.mesh : expand == 1)));
   Model red(comm_);
   PetscCall(cb.Reduce(model, red));
   PetscMPIInt wrank, rank;
@@ -83,14 +85,17 @@ PetscErrorCode Pipeline::Reduce(bool *reduced)
   model.K = std::move(red.K);
   model.F = std::move(red.F);
   // The mesh follows what stays physical: the contact nodes' DOFs (Craig-Bampton keeps them,
-  // renumbered in contact order). With interface reduction the in-plane DOFs are modal, and the
-  // modes and fixed-interface coordinates are not on the mesh at all: no expansion yet.
-  if (model.mesh && !red.contacts.HasExplicitColumns()) {
+  // renumbered in contact order; with interface reduction the in-plane DOFs are modal, so none).
+  // The kept expansion puts every node back on the mesh, in the full model's numbering (dof_full).
+  const bool iface = red.contacts.HasExplicitColumns();
+  if (model.mesh && (!iface || red.expansion)) {
     auto                         mesh = std::make_shared<io::FeMesh>(*model.mesh);
     std::map<PetscInt, PetscInt> to_red;
-    for (size_t c = 0; c < model.contacts.points.size(); ++c)
-      for (size_t j = 0; j < model.contacts.points[c].nodes.size(); ++j)
-        for (int k = 0; k < 3; ++k) to_red[model.contacts.points[c].nodes[j].dofs[k]] = red.contacts.points[c].nodes[j].dofs[k];
+    if (!iface)
+      for (size_t c = 0; c < model.contacts.points.size(); ++c)
+        for (size_t j = 0; j < model.contacts.points[c].nodes.size(); ++j)
+          for (int k = 0; k < 3; ++k) to_red[model.contacts.points[c].nodes[j].dofs[k]] = red.contacts.points[c].nodes[j].dofs[k];
+    if (red.expansion) mesh->dof_full = model.mesh->dof;
     for (auto &d : mesh->dof)
       for (PetscInt &i : d) {
         auto it = to_red.find(i);
@@ -100,8 +105,9 @@ PetscErrorCode Pipeline::Reduce(bool *reduced)
     mesh->partial = true;
     model.mesh    = mesh;
   } else model.mesh.reset();
-  model.contacts = red.contacts;
-  model.name     = red.name;
+  model.contacts  = red.contacts;
+  model.name      = red.name;
+  model.expansion = red.expansion;
   PetscFunctionReturn(0);
 }
 

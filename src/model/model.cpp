@@ -236,7 +236,8 @@ PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst)
   else PetscCall(VecDestroy(&f0));
   dst.contacts = src.contacts;
   dst.name     = src.name;
-  dst.mesh     = src.mesh;
+  dst.mesh      = src.mesh;
+  dst.expansion = src.expansion; // built on rank 0, where the copy lives
   PetscFunctionReturn(0);
 }
 

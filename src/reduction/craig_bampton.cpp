@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cmath>
 #include <ctime>
+#include <memory>
 #include <numeric>
 
 namespace squeal {
@@ -361,6 +362,73 @@ PetscErrorCode RenumberContacts(MPI_Comm comm, const cb::Partition &p, ContactSe
   PetscFunctionReturn(0);
 }
 
+// E = P [I 0; Psi Phi] T on rank 0 (Model::expansion): the interface rows are unit rows of the CB
+// coordinates in contact order, the interior rows those of W with its columns put in contact
+// order, all through the interface reduction T if any. The other ranks send their rows of W one
+// rank at a time, so rank 0 holds E, its own rows of W and one other rank's rows at most.
+PetscErrorCode BuildExpansion(MPI_Comm comm, const cb::Partition &p, const cb::Basis &b, const Dense &T, Expansion &x)
+{
+  PetscMPIInt        rank, size;
+  PetscInt           nloc, nis, lda;
+  const PetscScalar *a;
+  const PetscInt    *idx;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(MatGetLocalSize(b.W, &nloc, nullptr));
+  PetscCall(ISGetLocalSize(p.isI, &nis));
+  PetscCheck(nis == nloc, PETSC_COMM_SELF, PETSC_ERR_PLIB, "expansion: %" PetscInt_FMT " interior rows of W against %" PetscInt_FMT " indices", nloc, nis);
+  x.full_size = p.N;
+  x.n         = T.size() ? (PetscInt)T.cols() : b.n2;
+  x.E.clear();
+  std::vector<PetscReal> cbE; // N x n2, column-major, rank 0
+  if (rank == 0) {
+    PetscCallCXX(cbE.assign((size_t)p.N * b.n2, 0.0));
+    for (PetscInt d = 0; d < p.N; ++d)
+      if (p.where[d] >= 0) cbE[(size_t)p.where[d] * p.N + d] = 1;
+  }
+  auto place = [&](const PetscInt *rows, PetscInt nr, const PetscScalar *blk, PetscInt ld) {
+    for (PetscInt j = 0; j < b.n2; ++j) {
+      PetscReal *col = cbE.data() + (size_t)b.perm[j] * p.N;
+      for (PetscInt i = 0; i < nr; ++i) col[rows[i]] = blk[(size_t)j * ld + i];
+    }
+  };
+  PetscCall(MatDenseGetArrayRead(b.W, &a));
+  PetscCall(MatDenseGetLDA(b.W, &lda));
+  PetscCall(ISGetIndices(p.isI, &idx));
+  if (rank == 0) place(idx, nloc, a, lda);
+  for (PetscMPIInt r = 1; r < size; ++r) {
+    if (rank == r) {
+      std::vector<PetscScalar> blk((size_t)nloc * b.n2);
+      for (PetscInt j = 0; j < b.n2; ++j) std::copy(a + (size_t)j * lda, a + (size_t)j * lda + nloc, blk.begin() + (size_t)j * nloc);
+      PetscMPIInt cnt;
+      PetscCall(PetscMPIIntCast((PetscInt)blk.size(), &cnt));
+      PetscCallMPI(MPI_Send(&nloc, 1, MPIU_INT, 0, 0, comm));
+      PetscCallMPI(MPI_Send(idx, (PetscMPIInt)nloc, MPIU_INT, 0, 1, comm));
+      PetscCallMPI(MPI_Send(blk.data(), cnt, MPIU_SCALAR, 0, 2, comm));
+    } else if (rank == 0) {
+      PetscInt nr;
+      PetscCallMPI(MPI_Recv(&nr, 1, MPIU_INT, r, 0, comm, MPI_STATUS_IGNORE));
+      std::vector<PetscInt>    rows(nr);
+      std::vector<PetscScalar> blk((size_t)nr * b.n2);
+      PetscMPIInt              cnt;
+      PetscCall(PetscMPIIntCast((PetscInt)blk.size(), &cnt));
+      PetscCallMPI(MPI_Recv(rows.data(), (PetscMPIInt)nr, MPIU_INT, r, 1, comm, MPI_STATUS_IGNORE));
+      PetscCallMPI(MPI_Recv(blk.data(), cnt, MPIU_SCALAR, r, 2, comm, MPI_STATUS_IGNORE));
+      place(rows.data(), nr, blk.data(), nr);
+    }
+  }
+  PetscCall(ISRestoreIndices(p.isI, &idx));
+  PetscCall(MatDenseRestoreArrayRead(b.W, &a));
+  if (rank == 0) {
+    if (T.size()) {
+      PetscCallCXX(x.E.assign((size_t)p.N * x.n, 0.0));
+      Eigen::Map<Dense>(x.E.data(), p.N, x.n).noalias() = Eigen::Map<const Dense>(cbE.data(), p.N, b.n2) * T;
+    } else x.E.swap(cbE);
+  }
+  PetscFunctionReturn(0);
+}
+
 } // namespace
 
 PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
@@ -396,6 +464,17 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             "Interface reduction: keep this many in-plane characteristic constraint modes of the contact nodes "
                             "(normal DOFs stay physical; -1: no interface reduction, or all below -reduce_interface_fmax)",
                             "CraigBampton", iface_modes_, &iface_modes_, nullptr));
+  {
+    PetscBool expand = PETSC_FALSE, set = PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-expand",
+                               "Keep the expansion of reduced vectors to the full model (dense, N x n on rank 0) and write the "
+                               "unstable modes, the cycle and the transient's last records on the full mesh (/expanded); "
+                               "default: on for a model with a mesh (-model_type calculix)",
+                               "CraigBampton", expand, &expand, &set));
+    expand_opt_ = set ? (PetscInt)expand : -1;
+  }
+  PetscCall(PetscOptionsInt("-expand_records", "With -reduce_expand: how many of the transient's last records are expanded (0: none)",
+                            "CraigBampton", expand_records_, &expand_records_, nullptr));
   SquealOptionsReal("-interface_fmax", "Interface reduction: keep the in-plane characteristic constraint modes below this frequency (Hz); 0: by count only",
                     "CraigBampton", &iface_fmax_, Range::NonNegative(), checks);
   PetscOptionsEnd();
@@ -407,6 +486,7 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
     PetscCheck(fband_ <= 0 || fmax_ <= 0 || fmax_ >= fband_, comm_, kErrInput,
                "cut-off %sfmax = %g Hz is below the band of interest (%sfband = %g Hz): raise %sfmax to 1.5-2 x %g Hz",
                pre.c_str(), (double)fmax_, pre.c_str(), (double)fband_, pre.c_str(), (double)fband_);
+    PetscCheck(expand_records_ >= 0, comm_, kErrInput, "option %sexpand_records = %" PetscInt_FMT ": expected >= 0", pre.c_str(), expand_records_);
     PetscCheck(max_modes_ >= 1, comm_, kErrInput, "option %smax_modes = %" PetscInt_FMT ": expected >= 1", pre.c_str(), max_modes_);
     PetscCheck(iface_modes_ >= -1, comm_, kErrInput,
                "option %sinterface_modes = %" PetscInt_FMT ": expected >= 1 (or -1, the default: no interface reduction)", pre.c_str(),
@@ -662,6 +742,18 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     else red.C.reset();
   }
   PetscCall(ReducedLoad(part, basis, T, full.F, red.K, red.F.out()));
+  red.expansion.reset();
+  if (keep_expansion_) {
+    PetscLogDouble t0, t1;
+    auto           x = std::make_shared<Expansion>();
+    x->records       = expand_records_;
+    PetscCall(PetscTime(&t0));
+    PetscCall(BuildExpansion(comm, part, basis, T, *x));
+    PetscCall(PetscTime(&t1));
+    info_.time_expansion  = t1 - t0;
+    info_.expansion_bytes = x->Bytes();
+    red.expansion         = std::move(x);
+  }
   if (!T.size()) { // with interface reduction the contact set was made above
     red.contacts = full.contacts;
     PetscCall(RenumberContacts(comm, part, red.contacts));
@@ -721,6 +813,11 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
   PetscCall(PetscViewerASCIIPrintf(viewer, "  CPU time of the busiest rank: %.3f s (%.3f, %.3f, %.3f, %.3f)\n",
                                    (double)(info_.cpu_factor + info_.cpu_modes + info_.cpu_static + info_.cpu_project),
                                    (double)info_.cpu_factor, (double)info_.cpu_modes, (double)info_.cpu_static, (double)info_.cpu_project));
+  if (info_.expansion_bytes)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  expansion to the full model kept for the results on the mesh: %" PetscInt_FMT " x %" PetscInt_FMT
+                                             " on rank 0, %.1f MB, built in %.3f s (-reduce_expand 0 frees it)\n",
+                                     info_.N, info_.n_normal ? info_.n_normal + info_.n_inplane_modes + info_.n_modes : info_.n_interface + info_.n_modes,
+                                     (double)(info_.expansion_bytes / 1048576.0), (double)info_.time_expansion));
   PetscFunctionReturn(0);
 }
 

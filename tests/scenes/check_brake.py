@@ -1,12 +1,17 @@
 #!/usr/bin/python3
 """Run squeal on the brake example and check what it imported against the files themselves.
 
-Usage: check_brake.py DIR [--reduced] -- <command...>   (the command writes DIR/stability.h5)
+Usage: check_brake.py DIR [--reduced [--expanded FULL.h5]] -- <command...>
+       (the command writes its -output, by default DIR/stability.h5, with --reduced DIR/stability_reduced.h5)
 
 DIR holds make_brake.py's brake_mesh.inp and ccx's brake.dof. Checks: exit 0; the model's DOFs
 are the .dof file's lines; its contact points are the PAD_FACE node set's nodes (conforming
 faces: one node-to-node pair each); the stability run found at least one unstable mode (the
-default brake at mu = 0.4 has several) with a finite frequency.
+default brake at mu = 0.4 has several) with a finite frequency. With --expanded FULL.h5 (the full
+model's stability run at the same operating point): /mesh/dof_full is FULL.h5's /mesh/dof, and
+the reduced model's most unstable mode expanded to the whole mesh (/expanded/modes) is the full
+model's mode of the nearest eigenvalue, to 1e-2 after the best complex scaling (both normalised
+alike; the distance is printed).
 """
 import os
 import subprocess
@@ -16,9 +21,11 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from squeal.results import Results  # noqa: E402
 
 d = sys.argv[1]
-reduced = "--reduced" in sys.argv[:sys.argv.index("--")]
+opts = sys.argv[:sys.argv.index("--")]
+reduced = "--reduced" in opts
+full_h5 = opts[opts.index("--expanded") + 1] if "--expanded" in opts else None
 cmd = sys.argv[sys.argv.index("--") + 1:]
-out = os.path.join(d, "stability_reduced.h5" if reduced else "stability.h5")
+out = cmd[cmd.index("-output") + 1] if "-output" in cmd else os.path.join(d, "stability_reduced.h5" if reduced else "stability.h5")
 if os.path.exists(out):
     os.remove(out)
 rc = subprocess.call(cmd)
@@ -56,4 +63,20 @@ if rc == 0:
         freq = r.stability.frequency
         check(len(unstable) >= 1, f"{len(unstable)} unstable mode(s)")
         check(all(0 < freq[i] < 1e5 for i in unstable), "unstable frequencies finite, in (0, 100 kHz)")
+        if full_h5:
+            import numpy as np
+            check("expanded/modes/re" in r and "dof_full" in r.mesh, "/expanded/modes and /mesh/dof_full written")
+            with Results(full_h5) as f:
+                check(np.array_equal(r.mesh["dof_full"], f.mesh["dof"]), "/mesh/dof_full = the full model's /mesh/dof")
+                lam = complex(*r.stability.eigenvalues[unstable[0]])
+                ev = f.stability.eigenvalues[:, 0] + 1j * f.stability.eigenvalues[:, 1]
+                j = int(np.argmin(np.abs(ev - lam)))
+                ref = f.stability.mode(j)
+                e = r.h5["expanded/modes/re"][:, 0] + 1j * r.h5["expanded/modes/im"][:, 0]
+                a = np.vdot(e, ref) / np.vdot(e, e)
+                dist = np.linalg.norm(ref - a * e) / np.linalg.norm(ref)
+                check(abs(ev[j] - lam) < 1e-2 * abs(lam), f"reduced {lam.imag / 2 / np.pi:.2f} Hz (sigma {lam.real:.1f}) next to "
+                      f"the full model's {ev[j].imag / 2 / np.pi:.2f} Hz (sigma {ev[j].real:.1f})")
+                check(dist < 1e-2, f"expanded mode shape against the full model's: relative distance {dist:.2e} "
+                      f"(scale {abs(a):.4f})")
 sys.exit(1 if fails else 0)

@@ -470,3 +470,131 @@ TEST(Reduction, ReducedModelTakesTheDenseThetaBackEndByDefault)
     EXPECT_FALSE(ti.Dense()) << m->Size() << " DOFs, -theta_dense_max 200";
   }
 }
+
+namespace {
+
+// The model's full-DOF vector from the reduced q (all n entries on every rank) through the kept
+// expansion, on rank 0 (empty elsewhere).
+std::vector<PetscReal> Expanded(const Model &red, const std::vector<PetscReal> &q)
+{
+  std::vector<PetscReal> u;
+  PetscMPIInt            rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0) red.expansion->Apply(q.data(), 1, u);
+  return u;
+}
+
+// The most unstable mode's shape, all N entries on every rank.
+std::vector<std::complex<double>> MostUnstableShape(Model &model, double *freq)
+{
+  EquilibriumSolver                 eqs(model.comm());
+  StabilitySolver                   stab(model.comm());
+  SlidingEquilibrium                eq;
+  StabilityResult                   res;
+  std::vector<std::complex<double>> phi;
+  EXPECT_EQ(PetscOptionsSetValue(nullptr, "-eq_mat_mumps_icntl_14", "200"), 0);
+  EXPECT_EQ(eqs.SetFromOptions(), 0);
+  EXPECT_EQ(stab.SetFromOptions(), 0);
+  const bool failed = eqs.Solve(model, eq) || stab.Solve(model, eq, res);
+  EXPECT_EQ(PetscOptionsClearValue(nullptr, "-eq_mat_mumps_icntl_14"), 0);
+  if (failed || res.unstable.empty()) {
+    ADD_FAILURE() << "no unstable mode";
+    return phi;
+  }
+  const Mode            &m = res.modes[res.unstable[0]];
+  std::vector<PetscReal> re, im;
+  EXPECT_EQ(GatherVector(m.phi_re, true, re), 0);
+  EXPECT_EQ(GatherVector(m.phi_im, true, im), 0);
+  for (size_t i = 0; i < re.size(); ++i) phi.emplace_back(re[i], im[i]);
+  *freq = m.Frequency();
+  return phi;
+}
+
+} // namespace
+
+TEST(Reduction, KeptExpansionGivesTheFullStaticSolutionOfAnInterfaceLoad)
+{
+  // Craig-Bampton is exact for loads on the interface: u_full = K^{-1} F equals E K_r^{-1} T^T F
+  // on every DOF, interior included, when F_I = 0. The reference is a dense Eigen solve of the
+  // full K; the reduced side uses the reduced model's own K_r and F_r (not E). Interface reduction
+  // with all 2 n_c in-plane modes is an exact change of basis: the same holds. On 2 ranks the
+  // expansion gathers the interior rows of the other rank.
+  PadParams p = SmallPad();
+  Model     full;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  const PetscInt N = full.Size(), nc = full.contacts.Size();
+  // A load on the contact DOFs only, smooth in the contact index, all three directions.
+  PetscInt lo, hi;
+  ASSERT_EQ(VecGetOwnershipRange(full.F, &lo, &hi), 0);
+  ASSERT_EQ(VecSet(full.F, 0.0), 0);
+  Eigen::VectorXd F = Eigen::VectorXd::Zero(N);
+  for (PetscInt c = 0; c < nc; ++c)
+    for (int k = 0; k < 3; ++k) {
+      const PetscInt d = full.contacts.points[c].nodes[0].dofs[k];
+      F(d)             = (k == 2 ? -50.0 : 10.0) * (1 + std::sin(0.7 * c + k));
+      if (d >= lo && d < hi) ASSERT_EQ(VecSetValue(full.F, d, F(d), INSERT_VALUES), 0);
+    }
+  ASSERT_EQ(VecAssemblyBegin(full.F), 0);
+  ASSERT_EQ(VecAssemblyEnd(full.F), 0);
+  const Eigen::VectorXd u = test::ToDense(full.K).ldlt().solve(F);
+  PetscMPIInt           rank;
+  ASSERT_EQ(MPI_Comm_rank(PETSC_COMM_WORLD, &rank), 0);
+  for (PetscInt iface : {-1, 2 * nc}) {
+    Model        red(PETSC_COMM_WORLD);
+    CraigBampton cb(full.comm());
+    ASSERT_EQ(cb.SetFMax(20000), 0);
+    ASSERT_EQ(cb.SetInterfaceModes(iface), 0);
+    ASSERT_EQ(cb.SetKeepExpansion(true), 0);
+    ASSERT_EQ(cb.Reduce(full, red), 0);
+    ASSERT_TRUE(red.expansion);
+    EXPECT_EQ(red.expansion->full_size, N);
+    EXPECT_EQ(red.expansion->n, red.Size());
+    EXPECT_EQ(cb.Info().expansion_bytes, rank == 0 ? (size_t)N * red.Size() * sizeof(PetscReal) : 0u);
+    const Eigen::VectorXd  Fr = test::ToDense(red.F);
+    const Eigen::VectorXd  q  = test::ToDense(red.K).ldlt().solve(Fr);
+    const std::vector<PetscReal> ue = Expanded(red, std::vector<PetscReal>(q.data(), q.data() + q.size()));
+    if (rank != 0) continue;
+    ASSERT_EQ((PetscInt)ue.size(), N);
+    const double err = (Eigen::Map<const Eigen::VectorXd>(ue.data(), N) - u).cwiseAbs().maxCoeff();
+    EXPECT_LT(err, 1e-10 * u.cwiseAbs().maxCoeff()) << (iface < 0 ? "Craig-Bampton" : "interface reduction, all in-plane modes");
+  }
+}
+
+TEST(Reduction, ExpandedUnstableModeIsTheFullModelsMode)
+{
+  // The reduced model's most unstable mode, expanded to every DOF, against the full model's own
+  // (an independent eigensolve of the unreduced pad): relative distance after the best complex
+  // scaling, which the cut-off (4.6 x the mode's frequency) drives below 1e-3.
+  PetscMPIInt size, rank;
+  ASSERT_EQ(MPI_Comm_size(PETSC_COMM_WORLD, &size), 0);
+  ASSERT_EQ(MPI_Comm_rank(PETSC_COMM_WORLD, &rank), 0);
+  if (size > 1) GTEST_SKIP() << "serial numerics; the expansion's gather is checked on 2 ranks above";
+  PadParams p = SmallPad();
+  Model     full;
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  double     f_full = 0, f_red = 0;
+  const auto ref = MostUnstableShape(full, &f_full);
+  ASSERT_FALSE(ref.empty());
+  Model        red(PETSC_COMM_WORLD);
+  CraigBampton cb(full.comm());
+  ASSERT_EQ(cb.SetFMax(40000), 0);
+  ASSERT_EQ(cb.SetKeepExpansion(true), 0);
+  ASSERT_EQ(cb.Reduce(full, red), 0);
+  const auto phi = MostUnstableShape(red, &f_red);
+  ASSERT_FALSE(phi.empty());
+  EXPECT_NEAR(f_red, f_full, 1e-3 * f_full);
+  std::vector<PetscReal> re(phi.size()), im(phi.size()), ure, uim;
+  for (size_t i = 0; i < phi.size(); ++i) re[i] = phi[i].real(), im[i] = phi[i].imag();
+  red.expansion->Apply(re.data(), 1, ure);
+  red.expansion->Apply(im.data(), 1, uim);
+  ASSERT_EQ(ure.size(), ref.size());
+  std::complex<double> num = 0, den = 0;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    const std::complex<double> e(ure[i], uim[i]);
+    num += std::conj(e) * ref[i], den += std::conj(e) * e;
+  }
+  const std::complex<double> a = num / den;
+  double                     d2 = 0, r2 = 0;
+  for (size_t i = 0; i < ref.size(); ++i) d2 += std::norm(ref[i] - a * std::complex<double>(ure[i], uim[i])), r2 += std::norm(ref[i]);
+  EXPECT_LT(std::sqrt(d2 / r2), 1e-3) << "most unstable mode, " << f_full << " Hz (full), " << f_red << " Hz (reduced)";
+}

@@ -51,8 +51,12 @@ public:
   // of -model_export in *export_dir.
   PetscErrorCode BuildModel(std::string *export_dir = nullptr);
   // -reduce_type craig_bampton: the model replaced by its reduction (and its mesh by the DOFs
-  // that stay physical). *reduced: whether it was.
+  // that stay physical). *reduced: whether it was. With expand_results, the reduction keeps the
+  // expansion to the full model (-reduce_expand, by default when the model has a mesh).
   PetscErrorCode Reduce(bool *reduced = nullptr);
+  // Set by the program, whose results file gets /expanded; the sweep's and the continuation
+  // slices' pipelines write no vectors and keep no expansion.
+  bool expand_results = false;
   // Every stage's options, once the model is there (the sweep's default V is the model's).
   PetscErrorCode SetFromOptions(const Request &req = Request());
   // The operating point: the one writer of mu and V (ContactSet::SetFriction); every stage reads

@@ -34,6 +34,9 @@ struct FeMesh {
   // True when the dof map covers only some nodes (a reduced model keeps the contact nodes'
   // DOFs physical; the other nodes have -1 and no value on the mesh).
   bool partial = false;
+  // A reduced model that keeps its expansion (Model::expansion): the full model's dof map, into
+  // whose numbering the expanded results (/expanded in the results file) are written. Empty otherwise.
+  std::vector<std::array<PetscInt, 3>> dof_full;
 };
 
 } // namespace squeal::io

@@ -44,6 +44,7 @@ public:
   // Writes buffered data to disk. Collective.
   PetscErrorCode Flush();
   bool               IsOpen() const { return open_; }
+  MPI_Comm           Comm() const { return comm_; }
   // The file the results went to: the target, or its .failed.h5 sibling (see Close).
   const std::string &Path() const { return aside_ ? aside_path_ : path_; }
   const std::string &TemporaryPath() const { return tmp_; }

@@ -8,6 +8,7 @@
 #include "squeal/contact/contact_set.h"
 #include "squeal/core/handle.h"
 #include "squeal/io/fe_mesh.h"
+#include "squeal/model/expansion.h"
 
 #include <functional>
 #include <memory>
@@ -30,9 +31,10 @@ public:
 
   // The FE mesh the model was read from, if any (its dof map indexes the full model's DOFs).
   std::shared_ptr<const io::FeMesh> mesh;
-  // For a reduced model: u_full = T u (the reduction basis), into a Vec of mesh->full_size
-  // entries that the callee creates. Empty for a full model, where u itself is on the mesh.
-  std::function<PetscErrorCode(Vec u, Vec *u_full)> expand;
+  // For a reduced model: u_full = E u back to the full model's DOFs (on rank 0), when the
+  // reduction was asked to keep it (-reduce_expand). Empty for a full model, where u itself is
+  // on the mesh.
+  std::shared_ptr<const Expansion> expansion;
 
   // Checks what the physics needs: matching sizes, finite entries, symmetric M, C, K, positive
   // mass diagonal, non-negative stiffness and damping diagonals, a valid contact set. Every

@@ -40,7 +40,7 @@
 // contact problem of a time step still has 3 n_c unknowns: the Delassus matrix keeps its size,
 // but its in-plane block has rank <= k. One node (any weight) per point only.
 // Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
-// -reduce_redundant, -reduce_rhs_block, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
+// -reduce_redundant, -reduce_rhs_block, -reduce_expand, -reduce_expand_records, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
 // (e.g. -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves; with
 // -reduce_redundant on several ranks the factor's options are -reduce_st_redundant_mat_mumps_*).
 #pragma once
@@ -70,6 +70,8 @@ struct ReductionInfo {
   // Interface reduction (0: none): normal DOFs kept, in-plane modes kept and their frequencies (Hz).
   PetscInt               n_normal = 0, n_inplane_modes = 0;
   std::vector<PetscReal> inplane_freq;
+  PetscReal              time_expansion = 0; // s, building the kept expansion (0: none kept)
+  size_t                 expansion_bytes = 0; // on rank 0
 };
 
 class CraigBampton {
@@ -99,6 +101,12 @@ public:
   // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
   PetscErrorCode SetInterfaceModes(PetscInt k) { iface_modes_ = k; return 0; }
   PetscErrorCode SetInterfaceFMax(PetscReal fmax) { iface_fmax_ = fmax; return 0; }
+  // Keep the expansion u_full = E u (Model::expansion, on rank 0: 8 N n bytes) in the reduced
+  // model, so that results can be written on the full mesh. Off unless asked: -reduce_expand,
+  // whose default the caller chooses (ExpansionOption).
+  PetscErrorCode SetKeepExpansion(bool on) { keep_expansion_ = on; return 0; }
+  // -reduce_expand as given: 1 or 0; -1 when not given.
+  PetscInt       ExpansionOption() const { return expand_opt_; }
   // -reduce_type, -reduce_fmax, -reduce_nmodes, -reduce_fband; *enabled tells whether
   // -reduce_type asks for a reduction.
   PetscErrorCode SetFromOptions(bool *enabled = nullptr);
@@ -126,6 +134,9 @@ private:
   PetscInt      rhs_block_   = 32;
   PetscInt      iface_modes_ = -1;
   PetscReal     iface_fmax_  = 0;
+  PetscInt      expand_opt_  = -1;
+  PetscInt      expand_records_ = 200;
+  bool          keep_expansion_ = false;
   ReductionInfo info_;
 };
 

@@ -1,0 +1,84 @@
+#include "squeal/app/expanded.h"
+#include "squeal/core/gather.h"
+
+#include <algorithm>
+
+namespace squeal {
+
+namespace {
+// The writers' sizes come from rank 0 (the only rank holding records and orbits), so that every
+// rank creates the same datasets.
+PetscErrorCode SizeFromRankZero(MPI_Comm comm, size_t local, hsize_t *n)
+{
+  PetscFunctionBeginUser;
+  *n = local;
+  PetscCallMPI(MPI_Bcast(n, 1, MPI_UNSIGNED_LONG_LONG, 0, comm));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode WriteExpandedModes(const Model &model, const StabilityResult &res, io::H5Writer &out)
+{
+  const Expansion *x = model.expansion.get();
+  PetscFunctionBeginUser;
+  if (!x || res.unstable.empty() || !res.modes[res.unstable[0]].phi_re) PetscFunctionReturn(0);
+  const size_t           k = res.unstable.size(), n = (size_t)x->n;
+  std::vector<PetscReal> re(n * k), im(n * k), col, ure, uim;
+  for (size_t j = 0; j < k; ++j) {
+    const Mode &m = res.modes[res.unstable[j]];
+    PetscCall(GatherVector(m.phi_re, false, col));
+    for (size_t i = 0; i < col.size(); ++i) re[i * k + j] = col[i];
+    PetscCall(GatherVector(m.phi_im, false, col));
+    for (size_t i = 0; i < col.size(); ++i) im[i * k + j] = col[i];
+  }
+  PetscCallCXX(x->ApplyColumns(re.data(), k, ure));
+  PetscCallCXX(x->ApplyColumns(im.data(), k, uim));
+  const hsize_t N = (hsize_t)x->full_size;
+  PetscCall(out.WriteArray("/expanded/modes/re", {N, (hsize_t)k}, ure.data()));
+  PetscCall(out.WriteArray("/expanded/modes/im", {N, (hsize_t)k}, uim.data()));
+  PetscCall(out.WriteIntArray("/expanded/modes/index", {(hsize_t)k}, res.unstable.data()));
+  PetscCall(out.WriteAttribute("/expanded/modes", "layout", "[full DOF][unstable mode], the columns /expanded/modes/index of /stability/modes"));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode WriteExpandedOrbit(const Model &model, const ShootingResult &res, io::H5Writer &out)
+{
+  const Expansion *x = model.expansion.get();
+  hsize_t          s;
+  PetscFunctionBeginUser;
+  if (!x) PetscFunctionReturn(0);
+  PetscCall(SizeFromRankZero(out.Comm(), res.orbit_t.size(), &s));
+  if (!s) PetscFunctionReturn(0);
+  std::vector<PetscReal> U;
+  if (res.orbit_U.size() == s * (size_t)x->n) PetscCallCXX(x->Apply(res.orbit_U.data(), s, U));
+  else U.assign(s * (size_t)x->full_size, 0.0); // not rank 0: nothing is read there
+  PetscCall(out.WriteArray("/expanded/orbit/t", {s}, res.orbit_t.data()));
+  PetscCall(out.WriteArray("/expanded/orbit/U", {s, (hsize_t)x->full_size}, U.data()));
+  PetscCall(out.WriteAttribute("/expanded/orbit", "layout", "[sample][full DOF], one period of /shooting/orbit"));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode WriteExpandedRecords(const Model &model, const TransientResult &res, io::H5Writer &out)
+{
+  const Expansion *x = model.expansion.get();
+  hsize_t          s;
+  PetscFunctionBeginUser;
+  if (!x || x->records <= 0 || res.N != x->n) PetscFunctionReturn(0);
+  // Streamed records keep the last state only (TransientResult::streamed).
+  PetscCall(SizeFromRankZero(out.Comm(), res.N ? res.U.size() / (size_t)res.N : 0, &s));
+  if (!s) PetscFunctionReturn(0);
+  const hsize_t          keep = std::min<hsize_t>(s, (hsize_t)x->records), first = s - keep;
+  std::vector<PetscReal> U;
+  if (res.U.size() == s * (size_t)x->n) PetscCallCXX(x->Apply(res.U.data() + first * (size_t)x->n, keep, U));
+  else U.assign(keep * (size_t)x->full_size, 0.0);
+  const PetscReal *t = res.t.size() >= s ? res.t.data() + (res.t.size() - keep) : nullptr;
+  std::vector<PetscReal> tz;
+  if (!t) tz.assign(keep, 0.0), t = tz.data();
+  PetscCall(out.WriteArray("/expanded/transient/t", {keep}, t));
+  PetscCall(out.WriteArray("/expanded/transient/U", {keep, (hsize_t)x->full_size}, U.data()));
+  PetscCall(out.WriteAttribute("/expanded/transient", "first_record", (PetscInt)first));
+  PetscCall(out.WriteAttribute("/expanded/transient", "layout", "[record][full DOF], the last records of /transient/U (-reduce_expand_records)"));
+  PetscFunctionReturn(0);
+}
+
+} // namespace squeal
