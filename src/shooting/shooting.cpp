@@ -113,6 +113,9 @@ PetscErrorCode Shooting::SetFromOptions()
              "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
   PetscCheck(!pre_tol_set || (pre_tol >= 0 && std::isfinite(pre_tol)), comm_, kErrInput,
              "option -shoot_pre_tol = %g: expected >= 0", (double)pre_tol);
+  PetscCheck(pre_stagnation == PETSC_DECIDE || pre_stagnation >= 0, comm_, kErrInput,
+             "option -shoot_pre_stagnation = %" PetscInt_FMT ": expected >= 0 (0: never stop on stagnation; -1: the default)",
+             pre_stagnation);
   PetscCheck(recycle >= 0, comm_, kErrInput, "option -shoot_recycle = %" PetscInt_FMT ": expected >= 0", recycle);
   PetscCheck(tangent_cache_mb >= 0, comm_, kErrInput, "option -shoot_tangent_cache_mb = %g: expected >= 0", (double)tangent_cache_mb);
 
