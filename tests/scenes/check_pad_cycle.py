@@ -15,7 +15,10 @@ Checks:
   - the peak-to-peak of every DOF over the transient's last cycles agrees with that of the
     shooting orbit to --ptp-tol (relative to the largest);
   - the Floquet multipliers say the cycle is stable (it attracts the transient) and the trivial
-    multiplier is within 1e-2 of 1."""
+    multiplier is within 1e-2 of 1.
+With --expanded the shooting run is of a reduced model that kept its expansion (/expanded/orbit:
+the cycle on the full model's DOFs) and the transient is of the full model itself: every check
+above is then made on the full model's DOFs, the reduced cycle against the unreduced dynamics."""
 import argparse
 import os
 import sys
@@ -64,6 +67,8 @@ def main():
     ap.add_argument("--period-tol", type=float, default=1e-4)
     ap.add_argument("--ptp-tol", type=float, default=1e-2)
     ap.add_argument("--cycles", type=int, default=20, help="transient cycles compared (the last ones)")
+    ap.add_argument("--expanded", action="store_true",
+                    help="compare the shooting run's /expanded/orbit with a transient of the full model")
     ap.add_argument("cmd", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     cmd = scene_run.command(a.cmd)
@@ -75,7 +80,7 @@ def main():
         converged = s.converged
         its = s.iterations
         T_s = s.period
-        Uo = s["orbit/U"]
+        Uo = rs.h5["expanded/orbit/U"][()] if a.expanded else s["orbit/U"]
         L = s.floquet
         trivial = s.trivial
         q0 = float(rs.energy.attrs["q0"])
