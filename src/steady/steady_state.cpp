@@ -85,6 +85,11 @@ constexpr PetscInt  kDenseStepsMaxDofs = 200;
 constexpr PetscReal kFeStepsPerPeriod  = 200;
 } // namespace
 
+PetscReal steady::StatisticsStepsPerPeriod(PetscInt N, PetscReal steps, bool steps_given)
+{
+  return !steps_given && N > kDenseStepsMaxDofs && steps > kFeStepsPerPeriod ? kFeStepsPerPeriod : steps;
+}
+
 PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab, ThetaIntegrator &ti,
                                 TransientAnalysis &transient, const std::vector<PetscReal> &u0, const std::vector<PetscReal> &du0,
                                 const std::string &start, SteadyStateResult &res)
@@ -113,7 +118,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
   // lines, not the phase of one period to 1e-6, and at the transient's 1000 a 50-period chunk of
   // the 2625-DOF pad (807 DOFs) took 10.5 min, of the brake (1267 DOFs) 15 min, loaded. 200, as
   // shooting above 99 DOFs: a period error (2 pi / 200)^2 / 12 = 8e-5.
-  if (!transient.steps_given && N > kDenseStepsMaxDofs && transient.steps_per_period > kFeStepsPerPeriod) {
+  if (steady::StatisticsStepsPerPeriod(N, transient.steps_per_period, transient.steps_given) != transient.steps_per_period) {
     transient.steps_per_period = kFeStepsPerPeriod;
     PetscCall(PetscPrintf(comm_, "steady state: %d steps per period for N = %" PetscInt_FMT " DOFs (-transient_steps_per_period: chosen from the model unless given)\n",
                           (int)kFeStepsPerPeriod, N));

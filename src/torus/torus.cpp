@@ -5,6 +5,7 @@
 #include "squeal/core/gather.h"
 #include "squeal/core/options.h"
 #include "squeal/core/solvers.h"
+#include "squeal/steady/steady_state.h"
 
 #include <algorithm>
 #include <chrono>
@@ -413,14 +414,20 @@ PetscErrorCode TorusSolver::Run(const Model &model, const SlidingEquilibrium &eq
   // The start-up: the transient from the mode (as -analyses steady starts), its settings put back.
   TransientResult tr;
   {
-    const PetscReal periods = transient.periods, t_final = transient.t_final;
+    const PetscReal periods = transient.periods, t_final = transient.t_final, steps = transient.steps_per_period;
     const PetscInt  keep    = transient.keep_every;
     transient.periods = std::max<PetscInt>(startup_periods, 1), transient.t_final = 0;
+    // As the statistics: at the transient's 1000 steps per period the 807-DOF pad's 300 start-up
+    // periods were 300 000 steps, for an end state and a period.
+    transient.steps_per_period = steady::StatisticsStepsPerPeriod(N, steps, transient.steps_given);
+    if (transient.steps_per_period != steps)
+      PetscCall(PetscPrintf(comm_, "torus: start-up at %g steps per period for N = %" PetscInt_FMT " DOFs (-transient_steps_per_period: chosen from the model unless given)\n",
+                            (double)transient.steps_per_period, N));
     // Only the end state and the summary's period are used: about 50 records per period of the
     // mode do for the summary. Every step kept, the 807-DOF pad's 300 start-up periods held 5.1 GB.
     if (!transient.keep_every_set) transient.keep_every = std::max<PetscInt>(keep, (PetscInt)(transient.steps_per_period / 50));
     PetscErrorCode ierr = transient.Run(model, eq, stab, ti, tr);
-    transient.periods = periods, transient.t_final = t_final, transient.keep_every = keep;
+    transient.periods = periods, transient.t_final = t_final, transient.keep_every = keep, transient.steps_per_period = steps;
     PetscCall(ierr);
   }
   res.startup_periods = startup_periods;

@@ -87,6 +87,12 @@ Analysis Analyse(const std::vector<double> &x, double dt, long batches);
 // strongest line) lies more than 2 % above `band_hz` (the band's upper edge; <= 0 or inf: none).
 std::string BandNote(const Analysis &a, double band_hz);
 
+// Steps per period of a transient whose levels and lines are wanted, not the phase of one period
+// to 1e-6: an N-DOF model above 200 DOFs takes at most 200 (a period error (2 pi / 200)^2 / 12 =
+// 8e-5), unless the step was given (-transient_steps_per_period or -transient_h). The statistical
+// steady state and the torus's start-up transient take it.
+PetscReal StatisticsStepsPerPeriod(PetscInt N, PetscReal steps, bool steps_given);
+
 // Which linear modes carry the motion: the least-squares fit of the state records u_i (mean over
 // the window removed) on the real basis B = [Re phi_1, Im phi_1, ..., Re phi_k, Im phi_k] (one
 // column for a real mode), u_i - ubar ~ sum_j Re phi_j a_ji + Im phi_j b_ji = Re(phi_j q_ji) with
