@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 #include <vector>
 
 namespace squeal {
@@ -161,15 +162,26 @@ void CycleReader::Signal(TransientSummary &s)
   std::vector<PetscReal> lov(u + from_ * N_, u + (from_ + 1) * N_), hiv(lov);
   PetscReal          *mean = mean_.data(), *lo = lov.data(), *hi = hiv.data();
   size_t             *klo = klo_.data(), *kh = khi.data();
-  for (size_t k = from_; k < nr_; ++k) {
-    const PetscReal *uk = u + k * N_;
-    for (PetscInt j = 0; j < N_; ++j) {
-      const PetscReal x = uk[j];
-      if (x < lo[j]) klo[j] = k, lo[j] = x;
-      if (x > hi[j]) kh[j] = k, hi[j] = x;
-      mean[j] += x / nw;
+  // The pass on N_ values a record, or on 3 known at compile time (the 3-DOF model: the loop over
+  // the DOFs unrolled); the same operations either way.
+  const auto pass = [&](auto n_c) {
+    constexpr PetscInt NC = decltype(n_c)::value;
+    const PetscInt     n  = NC > 0 ? NC : N_;
+    for (size_t k = from_; k < nr_; ++k) {
+      const PetscReal *uk = u + k * n;
+#if defined(__GNUC__) && !defined(__clang__)
+  #pragma GCC unroll 4
+#endif
+      for (PetscInt j = 0; j < n; ++j) {
+        const PetscReal x = uk[j];
+        if (x < lo[j]) klo[j] = k, lo[j] = x;
+        if (x > hi[j]) kh[j] = k, hi[j] = x;
+        mean[j] += x / nw;
+      }
     }
-  }
+  };
+  if (N_ == 3) pass(std::integral_constant<PetscInt, 3>{});
+  else pass(std::integral_constant<PetscInt, 0>{});
   best_ = 0;
   for (PetscInt j = 0; j < N_; ++j) {
     PetscReal lo, hi;
@@ -374,8 +386,11 @@ void Levels(const TransientResult &res, size_t from, TransientSummary &s)
   const PetscInt nc = res.nc;
   if (nc > 0 && res.status.size() >= nr * nc) {
     PetscInt cnt[3] = {0, 0, 0};
-    for (size_t k = from; k < nr; ++k)
-      for (PetscInt c = 0; c < nc; ++c) cnt[res.status[k * nc + c]]++;
+    if (nc == 1) // one point (the 3-DOF model): one loop
+      for (size_t k = from; k < nr; ++k) cnt[res.status[k]]++;
+    else
+      for (size_t k = from; k < nr; ++k)
+        for (PetscInt c = 0; c < nc; ++c) cnt[res.status[k * nc + c]]++;
     const PetscReal tot = (PetscReal)((nr - from) * nc);
     s.frac_separated    = cnt[kOpen] / tot;
     s.frac_stuck        = cnt[kStick] / tot;
