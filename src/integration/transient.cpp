@@ -110,13 +110,14 @@ PetscErrorCode Capped(MPI_Comm comm, const ThetaIntegrator &ti, const StepInfo &
 // ~50 instructions more per 3-DOF step, benchmarks/transient_instructions.sh).
 class StatusOf {
 public:
-  StatusOf(const ContactSet &cs, const LocalContactSolver &ls) : cs_(cs), ls_(ls) {}
+  // The law and mu as they are for the whole run (Run changes neither), read once.
+  StatusOf(const ContactSet &cs, const LocalContactSolver &ls) : ls_(ls), rectilinear_(cs.law == FrictionLaw::Rectilinear), mu_(cs.Mu()) {}
   // NC: the number of points when known at compile time (Run's loop for the kernel's fixed sizes).
   template <int NC = Eigen::Dynamic, class Int>
   EIGEN_ALWAYS_INLINE void operator()(const Eigen::VectorXd &r, Int *status)
   {
     const Eigen::Index nc          = NC == Eigen::Dynamic ? r.size() / 3 : NC;
-    const bool         rectilinear = cs_.law == FrictionLaw::Rectilinear;
+    const bool         rectilinear = rectilinear_;
     bool               unsure      = false;
     for (Eigen::Index c = 0; c < nc; ++c) {
       const Eigen::Index o  = 3 * c;
@@ -125,7 +126,7 @@ public:
         status[c] = kOpen;
         continue;
       }
-      const PetscReal a = (1 - 1e-9) * cs_.Mu() * rn; // Status's bound, the same expression
+      const PetscReal a = (1 - 1e-9) * mu_ * rn; // Status's bound, the same expression
       if (rectilinear) {
         status[c] = std::abs(r[o + kT]) < a ? kStick : kSlip;
         continue;
@@ -142,8 +143,9 @@ public:
   }
 
 private:
-  const ContactSet         &cs_;
   const LocalContactSolver &ls_;
+  const bool                rectilinear_;
+  const PetscReal           mu_;
   std::vector<int>          all_;
 };
 
@@ -213,18 +215,22 @@ PetscErrorCode Loop(LoopContext &c, StepFn &&step, Dense dense, const PetscReal 
   constexpr bool     kDense = !std::is_same_v<Dense, std::nullptr_t>;
   const PetscInt     nsteps = c.nsteps, keep = c.res.keep_every, monitor = c.monitor;
   const PetscReal    h      = c.res.h;
-  const bool         contact = r.size() > 0;
   transient::Ledger *led    = c.book.GetLedger();
+  bool               contact = r.size() > 0;
+  if constexpr (kDense) contact = std::remove_pointer_t<Dense>::kNC > 0; // the same, known at compile time
   StepInfo           info;
-  PetscInt           fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT;
+  PetscInt           fp_total = 0, to_record = keep, to_monitor = monitor > 0 ? monitor : PETSC_MAX_INT, done = c.res.steps;
   // Dense: the next record's slots, moved on by a record's sizes after each (Next() again after a
   // record made by Event).
   transient::Bookkeeping::Slot slot{};
   if constexpr (kDense) slot = c.book.Next();
   PetscFunctionBeginUser;
   for (PetscInt i = 1; i <= nsteps; ++i) {
-    *ierr = step(info);
-    if (*ierr) break;
+    if constexpr (kDense) step(info); // cannot fail: *ierr stays 0
+    else {
+      *ierr = step(info);
+      if (*ierr) break;
+    }
     if (contact) {
       if (std::isnan(info.contact.residual)) {
         c.nan_step = i;
@@ -265,22 +271,29 @@ PetscErrorCode Loop(LoopContext &c, StepFn &&step, Dense dense, const PetscReal 
       if (rec) to_record = keep;
       if (mon) to_monitor = monitor;
     }
-    c.res.steps = i;
+    if constexpr (kDense) done = i; // c.res.steps when the loop ends (nothing in it reads it; an error return leaves it)
+    else c.res.steps = i;
     if (c.show_prog && (i % 64 == 0 || i == nsteps)) c.progress_line(i); // the clock read every 64 steps only
     bool stop = false; // SIGINT/SIGTERM: leave, records so far are written (every 32 steps: a reduction on >1 rank)
-    if (i % 32 == 0) PetscCall(InterruptRequested(c.comm, &stop));
+    if (i % 32 == 0) {
+      // Dense: one rank, where InterruptRequested is this test (without its call, ~2 instructions a 3-DOF step).
+      if constexpr (kDense) stop = InterruptSignal() != 0;
+      else PetscCall(InterruptRequested(c.comm, &stop));
+    }
     if (stop) break;
   }
   c.fp_total = fp_total;
+  if constexpr (kDense) c.res.steps = done;
   PetscFunctionReturn(0);
 }
 
 // Run's loop on one rank for the step kernel's fixed sizes (N, NC), if the kernel and the ledger are
 // those: the kernel called directly on the state arrays (not through ThetaIntegrator::Step and the
 // Vecs, whose state is increased once after the loop as VecRestoreArray would), the works and
-// records inlined. *done: taken.
+// records inlined. *done: taken. Flattened: GCC otherwise calls the kernel's Step, whose call,
+// frame and the loop's values kept across it cost ~35 of a 3-DOF step's ~640 instructions.
 template <int N, int NC>
-PetscErrorCode DenseLoop(LoopContext &c, Vec U, Vec dU, PetscReal *u, PetscReal *du, Eigen::VectorXd &r, PetscErrorCode *ierr, bool *done)
+__attribute__((flatten)) PetscErrorCode DenseLoop(LoopContext &c, Vec U, Vec dU, PetscReal *u, PetscReal *du, Eigen::VectorXd &r, PetscErrorCode *ierr, bool *done)
 {
   PetscFunctionBeginUser;
   auto *kern = dynamic_cast<DenseStepKernelT<N, NC> *>(c.ti.OneRankKernel());

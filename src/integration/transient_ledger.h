@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -151,11 +152,11 @@ public:
   }
   EIGEN_ALWAYS_INLINE void CopyAt(const PetscReal *u, const PetscReal *du, const PetscReal *r, PetscReal *U, PetscReal *V, PetscReal *R) const
   {
-    const PetscInt n = Size(), m = 3 * NcSize();
-    SQUEAL_UNROLL
-    for (PetscInt i = 0; i < n; ++i) U[i] = u[i], V[i] = du[i];
-    SQUEAL_UNROLL
-    for (PetscInt k = 0; k < m; ++k) R[k] = r[k];
+    // memcpy: the compiler may not assume that the record's slots and the state do not overlap,
+    // so the loops copied a value at a time (fixed sizes: a few vector moves here).
+    std::memcpy(U, u, sizeof(PetscReal) * Size());
+    std::memcpy(V, du, sizeof(PetscReal) * Size());
+    std::memcpy(R, r, sizeof(PetscReal) * 3 * NcSize());
   }
 
 private:

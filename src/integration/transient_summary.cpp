@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 #include <vector>
 
 namespace squeal {
@@ -157,17 +158,30 @@ void CycleReader::Signal(TransientSummary &s)
   std::vector<size_t> khi(N_, from_);
   const PetscReal     nw = (PetscReal)(nr_ - from_);
   const PetscReal    *u  = res_.U.data();
-  PetscReal          *mean = mean_.data();
+  // The extrema so far by value too (the same tests as against U(klo, j), without the index loads).
+  std::vector<PetscReal> lov(u + from_ * N_, u + (from_ + 1) * N_), hiv(lov);
+  PetscReal          *mean = mean_.data(), *lo = lov.data(), *hi = hiv.data();
   size_t             *klo = klo_.data(), *kh = khi.data();
-  for (size_t k = from_; k < nr_; ++k) {
-    const PetscReal *uk = u + k * N_;
-    for (PetscInt j = 0; j < N_; ++j) {
-      const PetscReal x = uk[j];
-      if (x < u[klo[j] * N_ + j]) klo[j] = k;
-      if (x > u[kh[j] * N_ + j]) kh[j] = k;
-      mean[j] += x / nw;
+  // The pass on N_ values a record, or on 3 known at compile time (the 3-DOF model: the loop over
+  // the DOFs unrolled); the same operations either way.
+  const auto pass = [&](auto n_c) {
+    constexpr PetscInt NC = decltype(n_c)::value;
+    const PetscInt     n  = NC > 0 ? NC : N_;
+    for (size_t k = from_; k < nr_; ++k) {
+      const PetscReal *uk = u + k * n;
+#if defined(__GNUC__) && !defined(__clang__)
+  #pragma GCC unroll 4
+#endif
+      for (PetscInt j = 0; j < n; ++j) {
+        const PetscReal x = uk[j];
+        if (x < lo[j]) klo[j] = k, lo[j] = x;
+        if (x > hi[j]) kh[j] = k, hi[j] = x;
+        mean[j] += x / nw;
+      }
     }
-  }
+  };
+  if (N_ == 3) pass(std::integral_constant<PetscInt, 3>{});
+  else pass(std::integral_constant<PetscInt, 0>{});
   best_ = 0;
   for (PetscInt j = 0; j < N_; ++j) {
     PetscReal lo, hi;
@@ -191,11 +205,15 @@ void CycleReader::Cross(PetscReal depth)
   PetscReal cyc_min = kInf;
   bool      armed   = false;
   cr_.clear();
+  // Locals: the members would be read again at every record (push_back might change them).
+  const PetscReal *ub = res_.U.data() + best_;
+  const size_t     N = (size_t)N_;
+  const PetscReal  c = c_;
   for (size_t k = from_; k + 1 < nr_; ++k) {
-    const PetscReal x0 = U(k, best_), x1 = U(k + 1, best_);
+    const PetscReal x0 = ub[k * N], x1 = ub[(k + 1) * N];
     cyc_min            = std::min(cyc_min, x0);
-    if (x0 < c_ - kHysteresis * depth) armed = true;
-    if (armed && x0 < c_ && x1 >= c_) {
+    if (x0 < c - kHysteresis * depth) armed = true;
+    if (armed && x0 < c && x1 >= c) {
       const PetscReal sk = Piece(k, best_).Crossing(c_);
       cr_.push_back({res_.t[k] + sk * (res_.t[k + 1] - res_.t[k]), k, sk});
       armed   = false;
@@ -229,15 +247,23 @@ void CycleReader::States(PetscInt settle_periods)
   const size_t    kMax  = std::max<size_t>(64, L) + 3;
   const PetscReal omega = 2 * PETSC_PI * (PetscReal)(cr_.size() - 1) / (cr_.back().t - cr_.front().t);
   e0_                   = cr_.size() > kMax ? cr_.size() - kMax : 0, ne_ = cr_.size() - e0_;
-  zscale_               = 0;
+  // The sum in a local and the test on has_v_ out of the loop: the same operations in the same order.
+  PetscReal        zscale = 0;
+  const PetscReal *mean = mean_.data(), *u = res_.U.data(), *vel = has_v_ ? res_.V.data() : nullptr;
   for (size_t k = from_; k < nr_; ++k) {
-    PetscReal z2 = 0;
-    for (PetscInt j = 0; j < N_; ++j) {
-      z2 += std::pow(U(k, j) - mean_[j], 2);
-      if (has_v_) z2 += std::pow(res_.V[k * N_ + j] / omega, 2);
-    }
-    zscale_ += std::sqrt(z2) / (PetscReal)(nr_ - from_);
+    PetscReal        z2 = 0;
+    const PetscReal *uk = u + k * N_;
+    if (vel) {
+      const PetscReal *vk = vel + k * N_;
+      for (PetscInt j = 0; j < N_; ++j) {
+        z2 += std::pow(uk[j] - mean[j], 2);
+        z2 += std::pow(vk[j] / omega, 2);
+      }
+    } else
+      for (PetscInt j = 0; j < N_; ++j) z2 += std::pow(uk[j] - mean[j], 2);
+    zscale += std::sqrt(z2) / (PetscReal)(nr_ - from_);
   }
+  zscale_ = zscale;
   // The interpolation error of Z, estimated per crossing by the change of dU from the quadratic
   // through the 3 nearest of those records to the cubic, is the floor under which a return
   // error cannot be checked (coarse records: -transient_keep_every).
@@ -360,8 +386,11 @@ void Levels(const TransientResult &res, size_t from, TransientSummary &s)
   const PetscInt nc = res.nc;
   if (nc > 0 && res.status.size() >= nr * nc) {
     PetscInt cnt[3] = {0, 0, 0};
-    for (size_t k = from; k < nr; ++k)
-      for (PetscInt c = 0; c < nc; ++c) cnt[res.status[k * nc + c]]++;
+    if (nc == 1) // one point (the 3-DOF model): one loop
+      for (size_t k = from; k < nr; ++k) cnt[res.status[k]]++;
+    else
+      for (size_t k = from; k < nr; ++k)
+        for (PetscInt c = 0; c < nc; ++c) cnt[res.status[k * nc + c]]++;
     const PetscReal tot = (PetscReal)((nr - from) * nc);
     s.frac_separated    = cnt[kOpen] / tot;
     s.frac_stuck        = cnt[kStick] / tot;
@@ -370,7 +399,10 @@ void Levels(const TransientResult &res, size_t from, TransientSummary &s)
   if (res.energy.size() >= 4 * nr) {
     PetscReal       emax = 0, defect = 0;
     const PetscReal E0   = res.energy[0];
-    for (size_t k = 0; k < nr; ++k) {
+#if defined(__GNUC__) && !defined(__clang__)
+  #pragma GCC unroll 4
+#endif
+    for (size_t k = 0; k < nr; ++k) { // every record: unrolled, the loop's test is most of a record's cost
       const PetscReal *e = &res.energy[4 * k];
       emax               = std::max(emax, std::abs(e[0]));
       defect             = std::max(defect, std::abs((e[0] - E0) - (e[2] + e[3] - e[1])));

@@ -5,6 +5,7 @@
 // to the fixed point, and whole transients with -theta_contact_solver ssn against fp.
 #include "dense.h"
 #include "squeal/contact/local_solver.h"
+#include "squeal/core/hypot.h"
 #include "squeal/integration/theta.h"
 #include "squeal/model/builders.h"
 #include "squeal/integration/transient.h"
@@ -13,7 +14,9 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 
 using namespace squeal;
@@ -369,4 +372,63 @@ TEST(LocalSolver, BadContactSolverOptionIsRejected)
   EXPECT_NE(ti.SetContactSolver("ssn", 0), 0);
   PetscPopErrorHandler();
   EXPECT_EQ(ti.SetContactSolver("auto", 5), 0);
+}
+
+// core/hypot.h: the hypot of the friction projection against libm's (bit for bit, also where it
+// is written out, HypotWrittenOut()) and both against sqrt(x^2 + y^2) in long double, within
+// 1 ulp, over magnitudes from subnormal to huge, ratios across the algorithm's branch (2 |y| = h)
+// and cut-off (|y| = 2^-54 |x|), and the special values.
+TEST(LocalSolver, HypotIsLibmHypot)
+{
+  std::mt19937                           gen(11);
+  std::uniform_real_distribution<double> mant(1.0, 2.0), sgn(-1.0, 1.0);
+  std::uniform_int_distribution<int>     ex(-1074, 1023), near(-60, 60);
+  const auto ulp_err = [](double v, double x, double y) {
+    const long double ref = std::sqrt((long double)x * x + (long double)y * y);
+    const double      r   = (double)ref;
+    if (!std::isfinite(r)) return std::isinf(v) ? 0.0L : 1e9L;
+    const double u = std::nextafter(r, INFINITY) - r;
+    return std::abs((long double)v - ref) / (long double)(u > 0 ? u : 1e-300);
+  };
+  long        n = 0, inlined = 0;
+  long double worst = 0;
+  const auto  check = [&](double x, double y) {
+    const double v = Hypot(x, y), ref = std::hypot(x, y);
+    EXPECT_EQ(std::memcmp(&v, &ref, sizeof v), 0) << std::hexfloat << x << " " << y << ": " << v << " against libm " << ref;
+    const double fx = std::abs(x), fy = std::abs(y), ax = std::max(fx, fy), ay = std::min(fx, fy);
+    inlined += ax <= 0x1p+511 && ay >= 0x1p-459 && ay > ax * 0x1p-54;
+    // The reference: x^2 + y^2 in long double (x87: a 64-bit mantissa and exponents to +-16383, so
+    // every double squares without overflow or underflow, to 2^-64 relative).
+    worst = std::max(worst, ulp_err(v, x, y));
+    ++n;
+  };
+  for (int i = 0; i < 400000; ++i) {
+    const int    e1 = i % 4 == 0 ? ex(gen) : near(gen), e2 = i % 3 == 0 ? e1 - (int)(gen() % 70) : e1 + near(gen) / 20;
+    const double x  = std::ldexp(mant(gen), std::clamp(e1, -1074, 1023)) * (sgn(gen) < 0 ? -1 : 1);
+    const double y  = std::ldexp(mant(gen), std::clamp(e2, -1074, 1023)) * (sgn(gen) < 0 ? -1 : 1);
+    check(x, y);
+    check(y, x);
+  }
+  // Near the two branches of the correction (h close to 2 ay: ay / ax close to 1 / sqrt(3)) and the cut-off.
+  for (int i = 0; i < 100000; ++i) {
+    const double x = mant(gen) * std::ldexp(1.0, near(gen));
+    check(x, x / std::sqrt(3.0) * (1 + 1e-6 * sgn(gen)));
+    check(x, x * 0x1p-54 * (1 + 1e-3 * sgn(gen)));
+    check(x, x * (1 + 1e-3 * sgn(gen)));
+    // around the range's bounds (2^-459 for the smaller, 2^511 for the larger magnitude)
+    const int b = i % 2 ? -459 : 511, k1 = (int)(gen() % 7) - 3, k2 = (int)(gen() % 7) - 3;
+    check(std::ldexp(mant(gen), b + k1), std::ldexp(mant(gen), b + k2));
+  }
+  const double specials[] = {0.0, -0.0, 1.0, 0x1p-1074, 0x1p-511, 0x1p-459, 0x1p+511, 0x1.fffffffffffffp+1023, INFINITY, -INFINITY, NAN, 3.0, 4.0};
+  for (double x : specials)
+    for (double y : specials) {
+      const double v = Hypot(x, y), ref = std::hypot(x, y);
+      if (std::isnan(ref)) EXPECT_TRUE(std::isnan(v)) << x << " " << y;
+      else EXPECT_EQ(v, ref) << x << " " << y;
+    }
+  EXPECT_EQ(Hypot(3.0, 4.0), 5.0);
+  EXPECT_LE(worst, 1.0) << "largest error of Hypot in ulp";
+  EXPECT_GT(inlined, n / 2); // the test reaches the written-out range
+  PetscPrintf(PETSC_COMM_WORLD, "Hypot: %ld pairs, %ld in the written-out range, largest error %.3Lf ulp (written out: %s; bit for bit against libm)\n", n, inlined, worst,
+              HypotWrittenOut() ? "yes" : "no, libm's hypot");
 }
