@@ -41,6 +41,26 @@ PetscErrorCode WriteExpandedModes(const Model &model, const StabilityResult &res
   PetscFunctionReturn(0);
 }
 
+namespace {
+// `count` rows of n reduced values (rank 0) expanded and written as GROUP/t and GROUP/U, with the
+// rows' meaning in GROUP's "layout"; every rank calls with the same count.
+PetscErrorCode WriteExpandedRows(const Expansion &x, const char *group, const PetscReal *t, const PetscReal *Q, size_t have, hsize_t count,
+                                 const char *layout, io::H5Writer &out)
+{
+  std::vector<PetscReal> U;
+  const std::string      g = group;
+  PetscFunctionBeginUser;
+  if (have == count) PetscCallCXX(x.Apply(Q, count, U));
+  else U.assign(count * (size_t)x.full_size, 0.0); // not rank 0: nothing is read there
+  std::vector<PetscReal> tz;
+  if (!t) tz.assign(count, 0.0), t = tz.data();
+  PetscCall(out.WriteArray((g + "/t").c_str(), {count}, t));
+  PetscCall(out.WriteArray((g + "/U").c_str(), {count, (hsize_t)x.full_size}, U.data()));
+  PetscCall(out.WriteAttribute(group, "layout", layout));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
 PetscErrorCode WriteExpandedOrbit(const Model &model, const ShootingResult &res, io::H5Writer &out)
 {
   const Expansion *x = model.expansion.get();
@@ -49,12 +69,8 @@ PetscErrorCode WriteExpandedOrbit(const Model &model, const ShootingResult &res,
   if (!x) PetscFunctionReturn(0);
   PetscCall(SizeFromRankZero(out.Comm(), res.orbit_t.size(), &s));
   if (!s) PetscFunctionReturn(0);
-  std::vector<PetscReal> U;
-  if (res.orbit_U.size() == s * (size_t)x->n) PetscCallCXX(x->Apply(res.orbit_U.data(), s, U));
-  else U.assign(s * (size_t)x->full_size, 0.0); // not rank 0: nothing is read there
-  PetscCall(out.WriteArray("/expanded/orbit/t", {s}, res.orbit_t.data()));
-  PetscCall(out.WriteArray("/expanded/orbit/U", {s, (hsize_t)x->full_size}, U.data()));
-  PetscCall(out.WriteAttribute("/expanded/orbit", "layout", "[sample][full DOF], one period of /shooting/orbit"));
+  PetscCall(WriteExpandedRows(*x, "/expanded/orbit", res.orbit_t.data(), res.orbit_U.data(), res.orbit_U.size() / (size_t)x->n, s,
+                              "[sample][full DOF], one period of /shooting/orbit", out));
   PetscFunctionReturn(0);
 }
 
@@ -67,17 +83,12 @@ PetscErrorCode WriteExpandedRecords(const Model &model, const TransientResult &r
   // Streamed records keep the last state only (TransientResult::streamed).
   PetscCall(SizeFromRankZero(out.Comm(), res.N ? res.U.size() / (size_t)res.N : 0, &s));
   if (!s) PetscFunctionReturn(0);
-  const hsize_t          keep = std::min<hsize_t>(s, (hsize_t)x->records), first = s - keep;
-  std::vector<PetscReal> U;
-  if (res.U.size() == s * (size_t)x->n) PetscCallCXX(x->Apply(res.U.data() + first * (size_t)x->n, keep, U));
-  else U.assign(keep * (size_t)x->full_size, 0.0);
-  const PetscReal *t = res.t.size() >= s ? res.t.data() + (res.t.size() - keep) : nullptr;
-  std::vector<PetscReal> tz;
-  if (!t) tz.assign(keep, 0.0), t = tz.data();
-  PetscCall(out.WriteArray("/expanded/transient/t", {keep}, t));
-  PetscCall(out.WriteArray("/expanded/transient/U", {keep, (hsize_t)x->full_size}, U.data()));
+  const hsize_t keep = std::min<hsize_t>(s, (hsize_t)x->records), first = s - keep;
+  const size_t  have = res.U.size() / (size_t)x->n == s ? keep : 0;
+  PetscCall(WriteExpandedRows(*x, "/expanded/transient", res.t.size() >= keep ? res.t.data() + (res.t.size() - keep) : nullptr,
+                              have ? res.U.data() + first * (size_t)x->n : nullptr, have, keep,
+                              "[record][full DOF], the last records of /transient/U (-reduce_expand_records)", out));
   PetscCall(out.WriteAttribute("/expanded/transient", "first_record", (PetscInt)first));
-  PetscCall(out.WriteAttribute("/expanded/transient", "layout", "[record][full DOF], the last records of /transient/U (-reduce_expand_records)"));
   PetscFunctionReturn(0);
 }
 

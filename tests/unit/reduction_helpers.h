@@ -23,26 +23,33 @@ inline PadParams SmallPad()
   return p;
 }
 
-// Unstable eigenvalues (sigma + i omega) of a model, most unstable first.
-inline std::vector<std::complex<double>> Unstable(Model &model, PetscInt nev = 12)
+// The sliding equilibrium and the stability of a model by squeal's own solvers (nev > 0: that many
+// eigenvalues asked of the PEP); false, with a test failure, when either fails.
+inline bool SolveStability(Model &model, StabilityResult &res, PetscInt nev = 0)
 {
-  EquilibriumSolver                 eqs(model.comm());
-  StabilitySolver                   stab(model.comm());
-  SlidingEquilibrium                eq;
-  StabilityResult                   res;
-  std::vector<std::complex<double>> out;
+  EquilibriumSolver  eqs(model.comm());
+  StabilitySolver    stab(model.comm());
+  SlidingEquilibrium eq;
   // MUMPS underestimates the workspace of the bordered equilibrium matrix of a dense reduced model.
   EXPECT_EQ(PetscOptionsSetValue(nullptr, "-eq_mat_mumps_icntl_14", "200"), 0);
   EXPECT_EQ(eqs.SetFromOptions(), 0);
-  EXPECT_EQ(PetscOptionsSetValue(nullptr, "-stab_pep_nev", std::to_string(nev).c_str()), 0);
+  if (nev > 0) {
+    EXPECT_EQ(PetscOptionsSetValue(nullptr, "-stab_pep_nev", std::to_string(nev).c_str()), 0);
+  }
   EXPECT_EQ(stab.SetFromOptions(), 0);
   EXPECT_EQ(PetscOptionsClearValue(nullptr, "-stab_pep_nev"), 0);
   const bool failed = eqs.Solve(model, eq) || stab.Solve(model, eq, res);
   EXPECT_EQ(PetscOptionsClearValue(nullptr, "-eq_mat_mumps_icntl_14"), 0);
-  if (failed) {
-    ADD_FAILURE() << "equilibrium or stability failed";
-    return out;
-  }
+  if (failed) ADD_FAILURE() << "equilibrium or stability failed";
+  return !failed;
+}
+
+// Unstable eigenvalues (sigma + i omega) of a model, most unstable first.
+inline std::vector<std::complex<double>> Unstable(Model &model, PetscInt nev = 12)
+{
+  StabilityResult                   res;
+  std::vector<std::complex<double>> out;
+  if (!SolveStability(model, res, nev)) return out;
   for (PetscInt i : res.unstable) out.emplace_back(res.modes[i].sigma, res.modes[i].omega);
   return out;
 }
