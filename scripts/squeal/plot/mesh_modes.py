@@ -70,7 +70,7 @@ def plot(results, plane_z, modes=2, r_hole=0.0, out="modes.png", cycle=0):
         if i == 0:
             ax.set_ylabel("y (m)")
     fig.colorbar(tc, ax=axes[0].tolist(), shrink=0.8, label=label or "normal displacement (scaled)")
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=110, bbox_inches="tight")
 
 
 def main(argv=None, prog=None):
