@@ -65,7 +65,11 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       tX_.resize(n_, 2 * k);
       tX_.leftCols(k)  = tvf_;
       tX_.rightCols(k) = dU + (h * (1 - t)) * ddU;
-      tHv_.noalias()   = Ht_ * tX_;
+      // One column (GMRES): two matrix-vector products; Eigen's matrix-matrix path would first
+      // copy (pack) the whole H^T for two columns.
+      tHv_.resize(3 * nc_, 2 * k);
+      if (k == 1) tHv_.col(0).noalias() = Ht_ * tX_.col(0), tHv_.col(1).noalias() = Ht_ * tX_.col(1);
+      else tHv_.noalias() = Ht_ * tX_;
       for (Eigen::Index q = 0; q < m; ++q) tw_.row(q) = tHv_.row(tclosed_[q]).head(k);
       for (Eigen::Index q = 0; q < m; q += 3) tg_.row(q + kN) = tHv_.row(tclosed_[q] + kN).tail(k);
       // With a valid factor of this step only the right-hand side is assembled (the O(m^2) matrix
@@ -83,9 +87,12 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         const Eigen::Index o = 3 * c, qn = q0 + kN;
         // Normal row: delta g~_n + h delta v_n = 0, delta v = delta w_f + h W delta r; in h also
         // d g~_n / dh = (1 - theta) v_n(t_i) and d (h v_n) / dh = v_n(t_{i+1}).
-        Wrow(o + kN, qn, h * h);
-        trc_.row(qn) = -tg_.row(qn) - h * tw_.row(qn);
-        if (dh) trc_.row(qn) -= ((1 - t) * (*step->v_start)[o + kN] + v_end[o + kN]) * *dh;
+        // Divided by h, a velocity row like the stick rows: as a displacement row (h^2 W) it was
+        // h times smaller than theirs, and partial pivoting on the unequilibrated rows made two
+        // orders of the same triangular solves differ by 1e-9 on the chain's cycle (2.6e-14 now).
+        Wrow(o + kN, qn, h);
+        trc_.row(qn) = -tg_.row(qn) / h - tw_.row(qn);
+        if (dh) trc_.row(qn) -= (((1 - t) * (*step->v_start)[o + kN] + v_end[o + kN]) / h) * *dh;
         const bool rect = cs.law == FrictionLaw::Rectilinear;
         if (tstatus_[c] == kStick) {
           for (int j : {kT, kB}) {
@@ -130,7 +137,10 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       }
       if (step && step->factor) {
         if (!step->factor->valid) step->factor->lu.compute(tAc_), step->factor->valid = true;
-        tdr_ = step->factor->lu.solve(trc_);
+        // One column through the vector triangular solves (the matrix ones pack the factor).
+        tdr_.resize(m, k);
+        if (k == 1) tdr_.col(0) = step->factor->lu.solve(trc_.col(0));
+        else tdr_ = step->factor->lu.solve(trc_);
       } else tdr_ = tAc_.partialPivLu().solve(trc_);
       // delta dU^{i+1} += h Y delta r, with delta r = 0 on the open points (Y read in place).
       tdrf_.setZero(3 * nc_, k);

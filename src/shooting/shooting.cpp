@@ -234,6 +234,7 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   for (VecH *v : {&xa_, &xbase_, &fbase_, &xp_, &fp_, &best_x_, &lastx_, &trx_, &jx_, &deflF_}) PetscCall(CreateState(v->out()));
   for (VecH *v : {&lastU1_, &lastdU1_}) PetscCall(VecDuplicate(model.F, v->out()));
   PetscCallMPI(MPI_Comm_size(comm_, &size_));
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank_));
   PetscCall(VecGetSize(model.F, &N_));
   PetscCall(ChooseDefaults());
   if (size_ > 1) PetscCall(gather_.SetUp(model.F));

@@ -174,8 +174,14 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
     }
     trC_ready_ = true;
   }
-  Eigen::MatrixXd    dU = dZ0.topRows(N), ddU = dZ0.bottomRows(N);
-  Eigen::RowVectorXd dh = dT / (PetscReal)steps;
+  // On several ranks every rank holds the whole flow (the dense back end runs replicated) and the
+  // columns are independent: each rank integrates its share and the shares are exchanged. Fewer
+  // columns than ranks stay whole (the GMRES products): no rank idles in a collective mid-flow.
+  const Eigen::Index k     = dZ0.cols();
+  const bool         split = size_ > 1 && k >= size_;
+  const Eigen::Index c0 = split ? k * rank_ / size_ : 0, kc = split ? k * (rank_ + 1) / size_ - c0 : k;
+  Eigen::MatrixXd    dU = dZ0.middleCols(c0, kc).topRows(N), ddU = dZ0.middleCols(c0, kc).bottomRows(N);
+  Eigen::RowVectorXd dh = dT.segment(c0, kc) / (PetscReal)steps;
   ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
   // One-column products (GMRES) would refactorise each step's closed-point system every time:
   // keep the factors along this flow while they fit in -shoot_tangent_cache_mb.
@@ -190,12 +196,28 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
     else sr_.resize(0), svs_.resize(0), sve_.resize(0);
     PetscCall(ti_->StepTangent(sr_, sve_, sd, dh, dU, ddU));
   }
-  dZ1.resize(2 * N, dZ0.cols());
-  dZ1.topRows(N)    = dU;
-  dZ1.bottomRows(N) = ddU;
+  dZ1.resize(2 * N, k);
+  dZ1.middleCols(c0, kc).topRows(N)    = dU;
+  dZ1.middleCols(c0, kc).bottomRows(N) = ddU;
+  if (split) PetscCall(ExchangeColumns(dZ1));
   ++evaluations_, ++tangents_;
   tangent_columns_ += dZ0.cols();
   PetscCall(PetscLogEventEnd(shoot_ev::tangent, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+// Rank r computed columns [k r / p, k (r + 1) / p) of Z in place; every rank gets them all.
+PetscErrorCode Shooting::ExchangeColumns(Eigen::MatrixXd &Z) const
+{
+  const Eigen::Index       k = Z.cols(), rows = Z.rows();
+  std::vector<PetscMPIInt> counts(size_), displs(size_);
+  PetscFunctionBeginUser;
+  for (PetscMPIInt r = 0; r < size_; ++r) {
+    const Eigen::Index a = k * r / size_, b = k * (r + 1) / size_;
+    PetscCall(PetscMPIIntCast(rows * a, &displs[r]));
+    PetscCall(PetscMPIIntCast(rows * (b - a), &counts[r]));
+  }
+  PetscCallMPI(MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, Z.data(), counts.data(), displs.data(), MPIU_REAL, comm_));
   PetscFunctionReturn(0);
 }
 

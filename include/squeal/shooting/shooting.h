@@ -124,6 +124,7 @@ public:
   // without a new factorisation (the derivative in h is exact, ThetaIntegrator::StepTangent).
   // Vectors in the natural order (U, dU) of the whole model, on every rank. Dense back end.
   PetscErrorCode TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT, Eigen::MatrixXd &dZ1);
+  PetscErrorCode ExchangeColumns(Eigen::MatrixXd &Z) const; // TangentFlow's column shares, to every rank
   bool           ExactJacobian() const { return exact_jacobian && ti_ && ti_->Dense(); }
   PetscErrorCode CreateState(Vec *x) const;
   PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
@@ -249,7 +250,7 @@ private:
   void                         BasePreconditioner(const Eigen::MatrixXd &z, Eigen::MatrixXd &y) const;
   VecH            jx_;              // where Jd_ was built
   AllGather       gather_;
-  PetscMPIInt     size_ = 1;
+  PetscMPIInt     size_ = 1, rank_ = 0;
   PetscInt        tangents_ = 0, setups_ = 0, N_ = 0;
   // Bisection flows of the phase pieces stop after flow_stop_ steps; their steps, in partial_steps_,
   // count as period integrations pro rata.
