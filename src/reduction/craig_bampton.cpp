@@ -100,31 +100,43 @@ PetscErrorCode CreateReducedMat(MPI_Comm comm, const Dense &A, Mat *out)
   PetscFunctionReturn(0);
 }
 
-// P = W^T G for a P known to be symmetric (G = A W with A symmetric), on every rank. Each rank
-// forms the lower triangle of its rows' share with Eigen's blocked kernels (half the flops of a
-// full product; the system BLAS may be the slow reference one), the shares are summed, and the
-// triangle mirrored: no N x n block leaves its rank.
-PetscErrorCode SymmetricTransposeProduct(Mat W, Mat G, Dense &P)
+// P = W^T A W for a symmetric A (same row layout as W), on every rank, a block of columns of W at
+// a time: the whole A W would be a second N x n dense block (4.1 GB for the 126 861-DOF brake at
+// n = 4019), beside W at the peak of the reduction. Each rank forms its rows' share of the block
+// column's lower part (Eigen's blocked kernels: half the flops of a full product; the system BLAS
+// may be the slow reference one), the shares are summed, and the triangle mirrored: no N x n
+// block leaves its rank.
+PetscErrorCode SymmetricProjection(Mat A, Mat W, Dense &P)
 {
-  MPI_Comm           comm;
-  PetscInt           nloc, n, ldw, ldg;
-  const PetscScalar *w, *g;
+  MPI_Comm       comm;
+  PetscInt       nloc, n;
+  const PetscInt block = 256; // columns: 2 MB per 1000 local rows
   PetscFunctionBeginUser;
   PetscCall(PetscObjectGetComm((PetscObject)W, &comm));
   PetscCall(MatGetLocalSize(W, &nloc, nullptr));
   PetscCall(MatGetSize(W, nullptr, &n));
-  PetscCall(MatDenseGetLDA(W, &ldw));
-  PetscCall(MatDenseGetLDA(G, &ldg));
   P = Dense::Zero(n, n);
-  PetscCall(MatDenseGetArrayRead(W, &w));
-  PetscCall(MatDenseGetArrayRead(G, &g));
-  if (nloc > 0) {
-    using CMap = Eigen::Map<const Dense, 0, Eigen::OuterStride<>>;
-    const CMap Wl(w, nloc, n, Eigen::OuterStride<>(ldw)), Gl(g, nloc, n, Eigen::OuterStride<>(ldg));
-    P.triangularView<Eigen::Lower>() += Wl.transpose() * Gl;
+  for (PetscInt c0 = 0; c0 < n; c0 += block) {
+    const PetscInt     c1 = PetscMin(n, c0 + block);
+    Mat                Wb;
+    MatH               Gb;
+    PetscInt           ldw, ldg;
+    const PetscScalar *w, *g;
+    PetscCall(MatDenseGetSubMatrix(W, PETSC_DECIDE, PETSC_DECIDE, c0, c1, &Wb));
+    PetscCall(MatMatMult(A, Wb, MAT_INITIAL_MATRIX, PETSC_DEFAULT, Gb.out()));
+    PetscCall(MatDenseRestoreSubMatrix(W, &Wb));
+    PetscCall(MatDenseGetLDA(W, &ldw));
+    PetscCall(MatDenseGetLDA(Gb, &ldg));
+    PetscCall(MatDenseGetArrayRead(W, &w));
+    PetscCall(MatDenseGetArrayRead(Gb, &g));
+    if (nloc > 0) {
+      using CMap = Eigen::Map<const Dense, 0, Eigen::OuterStride<>>;
+      const CMap Wl(w + (size_t)c0 * ldw, nloc, n - c0, Eigen::OuterStride<>(ldw)), Gl(g, nloc, c1 - c0, Eigen::OuterStride<>(ldg));
+      P.block(c0, c0, n - c0, c1 - c0).noalias() += Wl.transpose() * Gl;
+    }
+    PetscCall(MatDenseRestoreArrayRead(Gb, &g));
+    PetscCall(MatDenseRestoreArrayRead(W, &w));
   }
-  PetscCall(MatDenseRestoreArrayRead(G, &g));
-  PetscCall(MatDenseRestoreArrayRead(W, &w));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, P.data(), (int)(n * n), MPIU_REAL, MPI_SUM, comm));
   P.triangularView<Eigen::StrictlyUpper>() = P.transpose();
   PetscFunctionReturn(0);
@@ -272,7 +284,7 @@ PetscErrorCode CreateBasis(MPI_Comm comm, const cb::Partition &p, const cb::Inte
 // Omega^2): K_r = [K_BB + K_BI Psi, 0; 0, Omega^2], which saves the dense product W^T K_II W.
 PetscErrorCode ProjectMatrix(const cb::Partition &p, const cb::Basis &b, Mat A, bool stiffness, Dense &Ar)
 {
-  MatH           Aii, Aib, G;
+  MatH           Aii, Aib;
   Dense          Sd, Abb;
   const PetscInt nB = b.nB, m = b.m;
   PetscFunctionBeginUser;
@@ -285,8 +297,7 @@ PetscErrorCode ProjectMatrix(const cb::Partition &p, const cb::Basis &b, Mat A, 
     for (PetscInt k = 0; k < m; ++k) Ar(nB + k, nB + k) = b.omega2[k];
   } else {
     PetscCall(MatCreateSubMatrix(A, p.isI, p.isI, MAT_INITIAL_MATRIX, Aii.out()));
-    PetscCall(MatMatMult(Aii, b.W, MAT_INITIAL_MATRIX, PETSC_DEFAULT, G.out()));
-    PetscCall(SymmetricTransposeProduct(b.W, G, Ar));
+    PetscCall(SymmetricProjection(Aii, b.W, Ar));
     Ar.topLeftCorner(nB, nB) += Abb + Sd.leftCols(nB) + Sd.leftCols(nB).transpose();
     Ar.topRightCorner(nB, m) += Sd.rightCols(m);
     Ar.bottomLeftCorner(m, nB) += Sd.rightCols(m).transpose();
@@ -475,6 +486,10 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
   }
   PetscCall(PetscOptionsInt("-expand_records", "With -reduce_expand: how many of the transient's last records are expanded (0: none)",
                             "CraigBampton", expand_records_, &expand_records_, nullptr));
+  SquealOptionsReal("-expand_max_mb",
+                    "Without -reduce_expand: keep the expansion only while E (8 N n bytes on rank 0) is at most this many MB "
+                    "(beside the reduction's own N x n basis at its peak)",
+                    "CraigBampton", &expand_max_mb_, Range::NonNegative(), checks);
   SquealOptionsReal("-interface_fmax", "Interface reduction: keep the in-plane characteristic constraint modes below this frequency (Hz); 0: by count only",
                     "CraigBampton", &iface_fmax_, Range::NonNegative(), checks);
   PetscOptionsEnd();
@@ -743,7 +758,17 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   }
   PetscCall(ReducedLoad(part, basis, T, full.F, red.K, red.F.out()));
   red.expansion.reset();
-  if (keep_expansion_) {
+  const std::string pre   = OptionName(prefix_.c_str(), "");
+  const PetscInt  n_red     = T.size() ? (PetscInt)T.cols() : basis.n2;
+  const PetscReal expand_mb = 8.0 * (PetscReal)part.N * (PetscReal)n_red / 1048576.0;
+  if (keep_expansion_ && expand_opt_ < 0 && expand_mb > expand_max_mb_) {
+    // The default gives way to memory: with E beside W the 126 861-DOF brake's reduction peaked
+    // at 9.5 GB; without it the results stay on the contact faces.
+    PetscCall(PetscPrintf(comm,
+                          "reduction: the expansion to the full mesh would take %.0f MB on rank 0, over %sexpand_max_mb %.0f: not kept, "
+                          "results on the contact faces only (%sexpand 1 keeps it)\n",
+                          (double)expand_mb, pre.c_str(), (double)expand_max_mb_, pre.c_str()));
+  } else if (keep_expansion_) {
     PetscLogDouble t0, t1;
     auto           x = std::make_shared<Expansion>();
     x->records       = expand_records_;

@@ -136,6 +136,7 @@ private:
   PetscReal     iface_fmax_  = 0;
   PetscInt      expand_opt_  = -1;
   PetscInt      expand_records_ = 200;
+  PetscReal     expand_max_mb_  = 2048; // the default expansion's largest E (-reduce_expand_max_mb)
   bool          keep_expansion_ = false;
   ReductionInfo info_;
 };
