@@ -472,8 +472,8 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
   PetscCall(PetscOptionsBool("-redundant", "On several ranks, every rank factorises the whole K_II and solves its share of the constraint modes alone (false: one distributed MUMPS factorisation and solve)",
                              "CraigBampton", redundant_, &redundant_, nullptr));
   PetscCall(PetscOptionsInt("-interface_modes",
-                            "Interface reduction: keep this many in-plane characteristic constraint modes of the contact nodes "
-                            "(normal DOFs stay physical; -1: no interface reduction, or all below -reduce_interface_fmax)",
+                            "Interface reduction: keep this many characteristic constraint modes of the contact interface "
+                            "(one normal coordinate per point stays physical; -1: no interface reduction, or all below -reduce_interface_fmax)",
                             "CraigBampton", iface_modes_, &iface_modes_, nullptr));
   {
     PetscBool expand = PETSC_FALSE, set = PETSC_FALSE;
@@ -490,7 +490,15 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                     "Without -reduce_expand: keep the expansion only while E (8 N n bytes on rank 0) is at most this many MB "
                     "(beside the reduction's own N x n basis at its peak)",
                     "CraigBampton", &expand_max_mb_, Range::NonNegative(), checks);
-  SquealOptionsReal("-interface_fmax", "Interface reduction: keep the in-plane characteristic constraint modes below this frequency (Hz); 0: by count only",
+  {
+    PetscBool statics = PETSC_FALSE, set = PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-interface_statics",
+                               "Interface reduction: add the interface's static response to each contact normal (n_c more DOFs), so "
+                               "that an opening point takes a condensed shape; default: for two-body points (pad against disc) only",
+                               "CraigBampton", statics, &statics, &set));
+    if (set) iface_statics_ = (PetscInt)statics;
+  }
+  SquealOptionsReal("-interface_fmax", "Interface reduction: keep the interface's characteristic constraint modes below this frequency (Hz); 0: by count only",
                     "CraigBampton", &iface_fmax_, Range::NonNegative(), checks);
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
@@ -750,7 +758,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     else if (full.C) PetscCall(ProjectMatrix(part, basis, full.C, false, Cr));
     if (iface_modes_ >= 0 || iface_fmax_ > 0)
       PetscCall(cb::InterfaceReduction(comm, full.contacts, Permuted(basis, Mr), Permuted(basis, Kr), iface_modes_, iface_fmax_,
-                                       prefix_.c_str(), basis.m, T, red.contacts, info_));
+                                       iface_statics_, prefix_.c_str(), basis.m, T, red.contacts, info_));
     PetscCall(AssembleReduced(comm, basis, T, Mr, red.M.out()));
     PetscCall(AssembleReduced(comm, basis, T, Kr, red.K.out()));
     if (full.C) PetscCall(AssembleReduced(comm, basis, T, Cr, red.C.out()));
@@ -787,7 +795,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   PetscCall(PetscSNPrintf(name, sizeof(name), " + CB(%" PetscInt_FMT " + %" PetscInt_FMT ")", basis.nB, basis.m));
   red.name = full.name + name;
   if (T.size()) {
-    PetscCall(PetscSNPrintf(name, sizeof(name), " + IR(%" PetscInt_FMT " normal + %" PetscInt_FMT " in-plane)", info_.n_normal,
+    PetscCall(PetscSNPrintf(name, sizeof(name), " + IR(%" PetscInt_FMT " normal + %" PetscInt_FMT " interface modes)", info_.n_normal,
                             info_.n_inplane_modes));
     red.name += name;
   }
@@ -822,11 +830,14 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
   if (info_.n_modes > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, ", %.1f to %.1f Hz", (double)info_.freq.front(), (double)info_.freq.back()));
   PetscCall(PetscViewerASCIIPrintf(viewer, ")\n"));
+  char statics[96] = "";
+  if (info_.n_interface_statics > 0)
+    PetscCall(PetscSNPrintf(statics, sizeof statics, " (%" PetscInt_FMT " of them the statics of the contact normals)", info_.n_interface_statics));
   if (info_.n_inplane_modes > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  interface reduction: %" PetscInt_FMT " interface DOFs -> %" PetscInt_FMT " normal + %" PetscInt_FMT
-                                     " in-plane characteristic constraint modes (%.1f to %.1f Hz): %" PetscInt_FMT " DOFs\n",
-                                     info_.n_interface, info_.n_normal, info_.n_inplane_modes, (double)info_.inplane_freq.front(),
+                                     " characteristic constraint modes of the interface%s (%.1f to %.1f Hz): %" PetscInt_FMT " DOFs\n",
+                                     info_.n_interface, info_.n_normal, info_.n_inplane_modes, statics, (double)info_.inplane_freq.front(),
                                      (double)info_.inplane_freq.back(), info_.n_normal + info_.n_inplane_modes + info_.n_modes));
   PetscCall(PetscViewerASCIIPrintf(viewer,
                                    "  time %.3f s (factorisation of K_II %.3f s, fixed-interface modes %.3f s, constraint modes %.3f s, "

@@ -49,9 +49,11 @@ PetscErrorCode ConstraintModes(MPI_Comm comm, Mat F, Mat Kib, bool redundant, Pe
 
 // Interface reduction of the Craig-Bampton matrices Mp, Kp (contact order): T (n2 x (n_c + k + m))
 // maps [u_n, xi, eta] to the CB coordinates, k from k_max (< 0: no count limit) and fmax (Hz; <= 0:
-// none); contacts receives the reduced contact set, info the counts and in-plane frequencies.
+// none), plus the interface's static response to each contact normal where statics is 1 (-1: for
+// two-body points only; 0: never); contacts receives the reduced contact set, info the counts and
+// the frequencies of the interface basis.
 PetscErrorCode InterfaceReduction(MPI_Comm comm, const ContactSet &full, const Dense &Mp, const Dense &Kp, PetscInt k_max,
-                                  PetscReal fmax, const char *prefix, PetscInt m, Dense &T, ContactSet &contacts,
+                                  PetscReal fmax, PetscInt statics, const char *prefix, PetscInt m, Dense &T, ContactSet &contacts,
                                   ReductionInfo &info);
 
 } // namespace squeal::cb

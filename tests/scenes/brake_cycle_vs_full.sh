@@ -1,6 +1,6 @@
 #!/bin/bash
 # Issue 18 item 4: the reduced brake's limit cycle against a transient of the FULL model.
-#   brake_cycle_vs_full.sh SQUEAL SCENE CCX_JOB OUT_DIR
+#   brake_cycle_vs_full.sh SQUEAL SCENE CCX_JOB OUT_DIR [reduction options...]
 # Shooting on the half brake reduced by Craig-Bampton at 90 kHz (mu = 0.05, V = 1 m/s, the rest
 # from the model's defaults), its cycle expanded to all 3 600 DOFs (/expanded/orbit); then the
 # unreduced model's transient from its own unstable mode at the energy estimate's amplitude, 400
@@ -9,12 +9,14 @@
 # docs/fe-workflow.md). About 4 minutes of one core.
 set -euo pipefail
 squeal=$1 scene=$2 job=$3 out=$4
+shift 4
+reduce=(-reduce_type craig_bampton -reduce_fmax 90000 "$@")
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$out"
 rm -f "$out/cycle.h5" "$out/full_transient.h5"
 op=(-scene "$scene" -model_ccx_job "$job" -contact_mu 0.05 -contact_v 1)
-"$squeal" "${op[@]}" -analyses stability,energy,shooting -reduce_type craig_bampton -reduce_fmax 90000 \
-  -shoot_ksp_max_it 600 -floquet_nev 4 -output "$out/cycle.h5" | grep -E "^shooting:|limit cycle|Craig-Bampton|expansion"
+"$squeal" "${op[@]}" -analyses stability,energy,shooting "${reduce[@]}" \
+  -shoot_ksp_max_it 600 -floquet_nev 4 -output "$out/cycle.h5" | grep -E "^shooting:|limit cycle|Craig-Bampton|interface reduction|expansion"
 read -r h q0 < <(/usr/bin/python3 -c "import h5py, sys; f = h5py.File(sys.argv[1], 'r'); s = f['shooting']
 print(s['period'][()] / s.attrs['steps_per_period'], f['energy'].attrs['q0'])" "$out/cycle.h5")
 "$squeal" "${op[@]}" -analyses stability,transient -transient_periods 400 -transient_h "$h" -transient_keep_every 4 \

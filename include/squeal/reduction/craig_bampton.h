@@ -29,16 +29,20 @@
 // the scatter of its distributed solution into W came on top (docs/records.md, MPI speed-ups, item a).
 // The price: every rank holds a whole factor, and the factorisation itself no longer splits.
 // Interface reduction (-reduce_interface_modes k and/or -reduce_interface_fmax f; default off):
-// each contact node's 3 interface DOFs are rotated to its frame (t, b, n); the n_c normal DOFs
-// stay physical (h_n stays a selection, so the equilibrium's and the linearisation's pivot
-// elimination and the unilateral law stay exact node by node), and the 2 n_c in-plane DOFs are
-// replaced by the k lowest characteristic constraint modes of the reduced in-plane interface
-// block (K_pp Psi = M_pp Psi Lambda, Psi^T M_pp Psi = I, normals and fixed-interface modes held):
-//   u_xyz(c) = n_c u_n,c + [t_c b_c] Psi_c xi,   A_r <- T^T A_r T,   n_c + k + m DOFs,
-// ordered [u_n (n_c), xi (k), eta (m)]. h_t, h_b of point c become the rows 2c, 2c + 1 of Psi
-// (explicit column entries, dense over xi). With k = 2 n_c it is an exact change of basis. The
-// contact problem of a time step still has 3 n_c unknowns: the Delassus matrix keeps its size,
-// but its in-plane block has rank <= k. One node (any weight) per point only.
+// each contact point keeps one physical coordinate, x_c = a_c^T u_c with h_n = w_0 a_c (w_0 its
+// first node's weight): for one node its normal displacement, for a pad node against a disc node
+// (weights +1, -1) their relative normal displacement. h_n stays a selection, so the equilibrium's
+// and the linearisation's pivot elimination and the unilateral law stay exact point by point. The
+// rest of the interface, u_c = q0_c x_c + Z_c s_c (q0_c = a_c / |a_c|^2, Z_c an orthonormal basis
+// of a_c's complement: [t_c b_c] for one node; the tangential and the common motions of the two
+// faces for a pair), is replaced by the k lowest characteristic constraint modes of the reduced
+// interface block in s (K_ss Psi = M_ss Psi Lambda, Psi^T M_ss Psi = I, every x_c and the
+// fixed-interface modes held):
+//   u_c = q0_c x_c + Z_c Psi_c xi,   A_r <- T^T A_r T,   n_c + k + m DOFs,
+// ordered [x (n_c), xi (k), eta (m)]. h_t, h_b of point c become h_e^T Z_c Psi_c (explicit column
+// entries, dense over xi). With k = 3 n_nodes - n_c it is an exact change of basis. The contact
+// problem of a time step still has 3 n_c unknowns: the Delassus matrix keeps its size, but its
+// tangential block has rank <= k.
 // Options: -reduce_type none|craig_bampton, -reduce_fmax (Hz), -reduce_nmodes, -reduce_rayleigh,
 // -reduce_redundant, -reduce_rhs_block, -reduce_expand, -reduce_expand_records, and the eigensolver and the factorisation under -reduce_eps_* / -reduce_st_*
 // (e.g. -reduce_st_mat_mumps_icntl_27 for the block size of the constraint-mode solves; with
@@ -67,8 +71,9 @@ struct ReductionInfo {
   PetscReal              cpu_factor = 0, cpu_modes = 0, cpu_static = 0, cpu_project = 0;
   bool                   rayleigh = false; // C detected as a M + b K and projected as a M_r + b K_r
   PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
-  // Interface reduction (0: none): normal DOFs kept, in-plane modes kept and their frequencies (Hz).
-  PetscInt               n_normal = 0, n_inplane_modes = 0;
+  // Interface reduction (0: none): one normal coordinate per point kept, the interface's characteristic constraint modes kept and their frequencies (Hz).
+  PetscInt               n_normal = 0, n_inplane_modes = 0; // n_inplane_modes: every column of the interface basis
+  PetscInt               n_interface_statics = 0;           // of them, added for the contact normals' statics
   std::vector<PetscReal> inplane_freq;
   PetscReal              time_expansion = 0; // s, building the kept expansion (0: none kept)
   size_t                 expansion_bytes = 0; // on rank 0
@@ -96,11 +101,14 @@ public:
   // poll between blocks (<= 0: all in one solve; -reduce_rhs_block). The factor is the same:
   // only the right-hand side is split, and the modes agree to round-off.
   PetscErrorCode SetRHSBlock(PetscInt block) { rhs_block_ = block; return 0; }
-  // Interface reduction: keep the k lowest in-plane characteristic constraint modes (k < 0: no
+  // Interface reduction: keep the k lowest characteristic constraint modes of the interface (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
   // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
   PetscErrorCode SetInterfaceModes(PetscInt k) { iface_modes_ = k; return 0; }
   PetscErrorCode SetInterfaceFMax(PetscReal fmax) { iface_fmax_ = fmax; return 0; }
+  // Interface reduction: add the interface's static response to each contact normal (1), never (0),
+  // or for two-body points only (-1, the default; -reduce_interface_statics).
+  PetscErrorCode SetInterfaceStatics(PetscInt statics) { iface_statics_ = statics; return 0; }
   // Keep the expansion u_full = E u (Model::expansion, on rank 0: 8 N n bytes) in the reduced
   // model, so that results can be written on the full mesh. Off unless asked: -reduce_expand,
   // whose default the caller chooses (ExpansionOption).
@@ -134,6 +142,7 @@ private:
   PetscInt      rhs_block_   = 32;
   PetscInt      iface_modes_ = -1;
   PetscReal     iface_fmax_  = 0;
+  PetscInt      iface_statics_ = -1;
   PetscInt      expand_opt_  = -1;
   PetscInt      expand_records_ = 200;
   PetscReal     expand_max_mb_  = 2048; // the default expansion's largest E (-reduce_expand_max_mb)
