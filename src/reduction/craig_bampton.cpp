@@ -392,16 +392,42 @@ PetscErrorCode BuildExpansion(MPI_Comm comm, const cb::Partition &p, const cb::B
   x.full_size = p.N;
   x.n         = T.size() ? (PetscInt)T.cols() : b.n2;
   x.E.clear();
-  std::vector<PetscReal> cbE; // N x n2, column-major, rank 0
+  // Rank 0 fills E (N x n, column-major). Without interface reduction E is the CB basis itself:
+  // unit rows on the interface, W's rows (columns in contact order) inside. With it, E = E_cb T row
+  // by row: interface row d is T's row where[d], an interior row is W's row times Tp (T's rows in
+  // W's column order), a block of rows at a time, so the N x n2 CB expansion (4 GB for the
+  // 126 861-DOF brake) is never held beside W.
+  Dense Tp;
   if (rank == 0) {
-    PetscCallCXX(cbE.assign((size_t)p.N * b.n2, 0.0));
-    for (PetscInt d = 0; d < p.N; ++d)
-      if (p.where[d] >= 0) cbE[(size_t)p.where[d] * p.N + d] = 1;
+    PetscCallCXX(x.E.assign((size_t)p.N * x.n, 0.0));
+    if (T.size()) {
+      Tp.resize(b.n2, x.n);
+      for (PetscInt j = 0; j < b.n2; ++j) Tp.row(j) = T.row(b.perm[j]);
+      for (PetscInt d = 0; d < p.N; ++d)
+        if (p.where[d] >= 0)
+          for (PetscInt j = 0; j < x.n; ++j) x.E[(size_t)j * p.N + d] = T(p.where[d], j);
+    } else
+      for (PetscInt d = 0; d < p.N; ++d)
+        if (p.where[d] >= 0) x.E[(size_t)p.where[d] * p.N + d] = 1;
   }
   auto place = [&](const PetscInt *rows, PetscInt nr, const PetscScalar *blk, PetscInt ld) {
-    for (PetscInt j = 0; j < b.n2; ++j) {
-      PetscReal *col = cbE.data() + (size_t)b.perm[j] * p.N;
-      for (PetscInt i = 0; i < nr; ++i) col[rows[i]] = blk[(size_t)j * ld + i];
+    if (!T.size()) {
+      for (PetscInt j = 0; j < b.n2; ++j) {
+        PetscReal *col = x.E.data() + (size_t)b.perm[j] * p.N;
+        for (PetscInt i = 0; i < nr; ++i) col[rows[i]] = blk[(size_t)j * ld + i];
+      }
+      return;
+    }
+    const PetscInt chunk = 4096;
+    Dense          Eb;
+    for (PetscInt i0 = 0; i0 < nr; i0 += chunk) {
+      const PetscInt m = std::min(chunk, nr - i0);
+      Eigen::Map<const Dense, 0, Eigen::OuterStride<>> Wb(blk + i0, m, b.n2, Eigen::OuterStride<>(ld));
+      Eb.noalias() = Wb * Tp;
+      for (PetscInt j = 0; j < x.n; ++j) {
+        PetscReal *col = x.E.data() + (size_t)j * p.N;
+        for (PetscInt i = 0; i < m; ++i) col[rows[i0 + i]] = Eb(i, j);
+      }
     }
   };
   PetscCall(MatDenseGetArrayRead(b.W, &a));
@@ -431,12 +457,6 @@ PetscErrorCode BuildExpansion(MPI_Comm comm, const cb::Partition &p, const cb::B
   }
   PetscCall(ISRestoreIndices(p.isI, &idx));
   PetscCall(MatDenseRestoreArrayRead(b.W, &a));
-  if (rank == 0) {
-    if (T.size()) {
-      PetscCallCXX(x.E.assign((size_t)p.N * x.n, 0.0));
-      Eigen::Map<Dense>(x.E.data(), p.N, x.n).noalias() = Eigen::Map<const Dense>(cbE.data(), p.N, b.n2) * T;
-    } else x.E.swap(cbE);
-  }
   PetscFunctionReturn(0);
 }
 
