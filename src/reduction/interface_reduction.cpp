@@ -137,14 +137,11 @@ PetscErrorCode InterfaceReduction(MPI_Comm comm, const ContactSet &full, const D
   const PetscInt n2 = nB + m;
   PetscCheck(n2 == (PetscInt)Kp.rows(), comm, PETSC_ERR_PLIB, "interface reduction: %" PetscInt_FMT " interface DOFs + %" PetscInt_FMT " modes against a %" PetscInt_FMT "-row matrix",
              nB, m, (PetscInt)Kp.rows());
-  if (single)
-    PetscCheck(k_max <= ns, comm, kErrInput,
-               "%sinterface_modes %" PetscInt_FMT " exceeds the %" PetscInt_FMT " in-plane interface DOFs (2 x %" PetscInt_FMT
-               " contact points): give at most %" PetscInt_FMT, pre.c_str(), k_max, ns, nc, ns);
-  else
-    PetscCheck(k_max <= ns, comm, kErrInput,
-               "%sinterface_modes %" PetscInt_FMT " exceeds the %" PetscInt_FMT " interface DOFs besides the %" PetscInt_FMT
-               " contact normals: give at most %" PetscInt_FMT, pre.c_str(), k_max, ns, nc, ns);
+  char what[96]; // what the modes replace
+  if (single) PetscCall(PetscSNPrintf(what, sizeof what, "in-plane interface DOFs (2 x %" PetscInt_FMT " contact points)", nc));
+  else PetscCall(PetscSNPrintf(what, sizeof what, "interface DOFs besides the %" PetscInt_FMT " contact normals", nc));
+  PetscCheck(k_max <= ns, comm, kErrInput, "%sinterface_modes %" PetscInt_FMT " exceeds the %" PetscInt_FMT " %s: give at most %" PetscInt_FMT,
+             pre.c_str(), k_max, ns, what, ns);
   Dense                  Psi, Kss, Mss;
   std::vector<PetscReal> lam;
   PetscCall(ConstraintModesOfTheInterface(comm, pts, sat, ns, Mp, Kp, Kss, Mss, Psi, lam));
