@@ -550,7 +550,6 @@ PetscErrorCode Shooting::SetUpNewton()
     PetscCall(SNESGetLineSearch(snes_, &ls));
     PetscCall(SNESLineSearchSetType(ls, deflate_power > 0 ? SNESLINESEARCHBT : SNESLINESEARCHBASIC));
   }
-  Mlin_.resize(0, 0);
   {
     KSP ksp;
     PC  pc;
@@ -583,13 +582,6 @@ PetscErrorCode Shooting::SetUpNewton()
         PetscCall(PetscInfo(nullptr, "shooting: N = %" PetscInt_FMT " > -theta_dense_max: finite-difference products\n", N_));
     }
   }
-  PetscCall(VecSet(jx_, PETSC_INFINITY));
-  anchored_    = false;
-  hist_res_.clear();
-  hist_T_.clear();
-  best_res_ = kInf;
-  fail_reason_.clear();
-  criterion_iterate_ = -1;
   PetscFunctionReturn(0);
 }
 
@@ -597,6 +589,19 @@ PetscErrorCode Shooting::Newton(Vec x, ShootingResult &res)
 {
   SNESConvergedReason reason;
   PetscFunctionBeginUser;
+  // Each start (the first, and every -shoot_pre_retries restart) anew: its own anchor, history,
+  // best iterate and failure, and the linear preconditioner's monodromy at its own period (built at
+  // the first Jacobian: over a period 1.3 % longer the lightly damped modes' phases move enough that
+  // the half brake's restart from the state that converges in 8 iterations failed with the old one).
+  Mlin_.resize(0, 0);
+  PetscCall(VecSet(jx_, PETSC_INFINITY));
+  anchored_ = false;
+  hist_res_.clear();
+  hist_T_.clear();
+  best_res_ = kInf;
+  fail_reason_.clear();
+  criterion_iterate_ = -1;
+  rec_S_.resize(0, 0), rec_YS_.resize(0, 0), rec_w_.clear(), rec_y_.clear();
   PetscCall(VecCopy(x, best_x_));
   defl_m_ = 0;
   PetscCall(Unpack(x, wU_, wdU_, nullptr));

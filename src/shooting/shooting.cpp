@@ -84,6 +84,10 @@ PetscErrorCode Shooting::SetFromOptions()
                              "each other; beyond 5 % of T that period becomes the start period and the bracket's centre (0: run them "
                              "all; default from the model: 0.05 up to N = 200 DOFs, 0.02 above)",
                              "Shooting", pre_tol, &pre_tol, &pre_tol_set));
+  PetscCall(PetscOptionsInt("-pre_retries",
+                            "When Newton fails from pre-periods that returned within -shoot_pre_tol: continue the flow from where they "
+                            "stopped to a 10 times smaller return distance and start Newton again, up to this many times (0: never)",
+                            "Shooting", pre_retries, &pre_retries, nullptr));
   PetscCall(PetscOptionsInt("-pre_stagnation",
                             "Stop the -shoot_pre_periods once the best return distance of the last W periods is not below half the "
                             "best of those before them (at least W before; 0: never; default: off in -analyses shooting, 20 in "
@@ -113,6 +117,7 @@ PetscErrorCode Shooting::SetFromOptions()
              "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);
   PetscCheck(!pre_tol_set || (pre_tol >= 0 && std::isfinite(pre_tol)), comm_, kErrInput,
              "option -shoot_pre_tol = %g: expected >= 0", (double)pre_tol);
+  PetscCheck(pre_retries >= 0, comm_, kErrInput, "option -shoot_pre_retries = %" PetscInt_FMT ": expected >= 0", pre_retries);
   PetscCheck(pre_stagnation == PETSC_DECIDE || pre_stagnation >= 0, comm_, kErrInput,
              "option -shoot_pre_stagnation = %" PetscInt_FMT ": expected >= 0 (0: never stop on stagnation; -1: the default)",
              pre_stagnation);
@@ -396,8 +401,8 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpAt(T0));
   PetscCall(SetUpNewton());
   PetscCall(CreateState(x.out()));
-  pre_e_ = 0, pre_returned_ = false, pre_stagnated_ = false;
-  if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, x));
+  pre_e_ = 0, pre_returned_ = false, pre_stagnated_ = false, pre_tol_used_ = pre_tol;
+  if (pre_periods > 0) PetscCall(PrePeriods(U0, dU0, T0, pre_tol, x));
   else PetscCall(Pack(U0, dU0, T0, x));
   if (after_pre_periods) {
     VecH      U, dU;
@@ -416,7 +421,35 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       PetscFunctionReturn(0);
     }
   }
+  VecH      xpre; // where the last pre-periods stopped: the retries go on from there
+  PetscReal tol = pre_tol;
+  if (pre_periods > 0 && pre_retries > 0) {
+    PetscCall(VecDuplicate(x, xpre.out()));
+    PetscCall(VecCopy(x, xpre));
+  }
   PetscCall(Newton(x, res));
+  // Near the instability threshold the cycle's Floquet multipliers crowd 1 (the half brake at
+  // mu = 0.05: 0.9993), so the bordered Jacobian is nearly singular there and Newton's basin is
+  // small: from a return distance of 0.02 its first step leaves it, from 0.002 it converges in 8
+  // iterations (docs/fe-workflow.md). The flow still contracts towards an attracting cycle: go on
+  // with it from where the pre-periods stopped rather than from Newton's last iterate.
+  for (PetscInt retry = 1; !res.converged && retry <= pre_retries && pre_periods > 0 && pre_returned_; ++retry) {
+    tol *= 0.1;
+    PetscCall(PetscPrintf(comm_,
+                          "shooting: Newton did not converge from the return distance %.2e (%s): the flow goes on to %g, then Newton "
+                          "again (retry %" PetscInt_FMT " of -shoot_pre_retries %" PetscInt_FMT ")\n",
+                          (double)pre_e_, res.reason.c_str(), (double)tol, retry, pre_retries));
+    VecH      U, dU;
+    PetscReal T;
+    PetscCall(VecDuplicate(U0, U.out()));
+    PetscCall(VecDuplicate(dU0, dU.out()));
+    PetscCall(Unpack(xpre, U, dU, &T));
+    PetscCall(PrePeriods(U, dU, T, tol, x));
+    PetscCall(VecCopy(x, xpre));
+    res.pre_retries = retry;
+    PetscCall(Newton(x, res));
+  }
+  pre_tol_used_ = tol;
   PetscCall(GatherZ0(x, res));
   PetscCall(Orbit(aU_, adU_, res.period, res));
   const PetscInt newton_steps = evaluations_ * steps + partial_steps_;
@@ -482,14 +515,21 @@ std::string Shooting::FailureHint(const ShootingResult &res) const
                       "take the settled period of a transient (-analyses transient) and start from it with -shoot_period";
   else if (pre_periods == 0)
     h += "; if the cycle attracts, start closer with periods of flow: -shoot_pre_periods 200 -shoot_pre_tol 0.02";
-  else if (pre_done_ < pre_periods)
-    h += "; if the cycle attracts, start closer: a smaller -shoot_pre_tol";
-  else {
+  else if (pre_returned_) {
+    if (res.pre_retries > 0)
+      std::snprintf(b, sizeof b,
+                    "; the flow returned within %g after %" PetscInt_FMT " pre-period(s) in all (-shoot_pre_retries %" PetscInt_FMT
+                    " taken) and Newton still failed: if the cycle attracts, start closer with more -shoot_pre_retries or a "
+                    "smaller -shoot_pre_tol; a cycle whose Floquet multipliers crowd 1 is nearly neutral and hard to pin down",
+                    (double)pre_tol_used_, pre_done_, res.pre_retries);
+    else std::snprintf(b, sizeof b, "; if the cycle attracts, start closer: a smaller -shoot_pre_tol");
+    h += b;
+  } else {
     std::snprintf(b, sizeof b,
                   "; the %" PetscInt_FMT " pre-periods did not bring the flow back within -shoot_pre_tol %g: if the motion is "
                   "periodic, more -shoot_pre_periods; if it never returns (irregular), there is no cycle to shoot for "
                   "(-analyses transient shows the motion)",
-                  pre_done_, (double)pre_tol);
+                  pre_done_, (double)pre_tol_used_);
     h += b;
   }
   // GMRES that ran out of iterations after a close start: its own options, and the step, whose
@@ -556,6 +596,11 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));
+  if (res.pre_retries > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "Newton started %" PetscInt_FMT " time(s) more (-shoot_pre_retries), after %" PetscInt_FMT
+                                     " pre-period(s) in all, from a return distance below %g\n",
+                                     res.pre_retries, res.pre_periods, (double)pre_tol_used_));
   if (res.bracket_recentred)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "start period and bracket (T/2, 2 T) = (%.6g, %.6g) s moved to the period the pre-periods' motion "
@@ -605,6 +650,8 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting", "corrections_applied", res.corrections));
   PetscCall(out.WriteAttribute("/shooting", "reason", res.reason.c_str()));
   PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
+  PetscCall(out.WriteAttribute("/shooting", "pre_periods", res.pre_periods));
+  PetscCall(out.WriteAttribute("/shooting", "pre_retries", res.pre_retries));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
   if (!res.floquet.empty()) {
     PetscCall(out.WriteAttribute("/shooting", "floquet_verdict", res.floquet_verdict.c_str()));

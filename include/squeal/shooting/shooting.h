@@ -57,6 +57,8 @@ struct ShootingResult {
   // -shoot_pre_periods: periods of flow run before Newton, and the period-corrected T they ended with.
   PetscInt                             pre_periods = 0;
   PetscReal                            pre_period  = 0;
+  // -shoot_pre_retries taken: Newton restarted after more pre-periods to a tighter return distance.
+  PetscInt                             pre_retries = 0;
   // The period of the pre-periods' motion, from its returns to a Poincare section (0: no two
   // successive returns agreed), and the centre T_c of the period bracket (T_c/2, 2 T_c) Newton ran
   // in: the start period, or that measured period when it lay beyond the first-order correction.
@@ -181,6 +183,10 @@ public:
   // 6 / 5 Newton iterations; on the 31119-DOF pad 0.2 (6 periods) leaves Newton wandering at
   // ||H||/||Z0|| ~ 1 and 0.02 (38) converges in 5.
   PetscReal pre_tol          = PETSC_DECIDE;
+  // -shoot_pre_retries: when Newton fails from pre-periods that returned within their tolerance,
+  // the flow goes on from where they stopped to a 10 times smaller return distance and Newton starts
+  // again from there, up to this many times.
+  PetscInt  pre_retries      = 2;
   // -shoot_pre_stagnation W: stop the pre-periods once the best return distance of the last W is not
   // below half the best before them (at least W before; a move of the start period starts afresh).
   // PETSC_DECIDE: off in -analyses shooting, which asks for a cycle; -analyses auto takes
@@ -211,7 +217,9 @@ private:
   // Newton in x; Newton from x, leaving the returned iterate in x and (aU_, adU_); the reason of a
   // failed SNES; the returned Z0 on rank 0 in the natural order (U, dU).
   PetscErrorCode SetUpNewton();
-  PetscErrorCode PrePeriods(Vec U0, Vec dU0, PetscReal T0, Vec x);
+  // The pre-periods from (U0, dU0) at the start period T0, until the return distance is below tol
+  // (-shoot_pre_tol, or a retry's tighter one); they add to pre_done_.
+  PetscErrorCode PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol, Vec x);
   PetscErrorCode Newton(Vec x, ShootingResult &res);
   PetscErrorCode NewtonFailure(SNESConvergedReason reason);
   std::string    FailureHint(const ShootingResult &res) const; // the options that help, after a failed Newton
@@ -268,6 +276,7 @@ private:
   bool            recentred_    = false; // ... and whether the bracket was moved onto it
   PetscReal       pre_T_    = 0; // ... and the period they ended with
   PetscReal       pre_e_    = 0;     // ... their last return distance
+  PetscReal       pre_tol_used_ = 0; // ... and the tolerance the last of them ran to (-shoot_pre_retries tighten it)
   bool            pre_returned_ = false; // ... and whether they stopped on the return criterion
   bool            pre_stagnated_ = false; // ... or on -shoot_pre_stagnation, with the two best distances
   PetscReal       pre_best_recent_ = 0, pre_best_before_ = 0;
