@@ -134,7 +134,7 @@ private:
   PetscReal     fmax_   = 0;
   PetscInt      nmodes_ = -1;
   PetscReal     fband_  = 0;
-  PetscInt      max_modes_ = 400;
+  PetscInt      max_modes_ = 1000;
   PetscBool     rayleigh_  = PETSC_TRUE;
   PetscBool     sparse_rhs_ = PETSC_TRUE;
   PetscBool     count_modes_ = PETSC_TRUE;
