@@ -113,7 +113,17 @@ PetscErrorCode FloquetSolver::View(const ShootingResult &res, PetscViewer viewer
                                    res.floquet_method.c_str(), res.floquet_phases,
                                    res.floquet[res.trivial].real(), res.floquet[res.trivial].imag(),
                                    std::abs(res.floquet[res.trivial] - 1.0), verdict.c_str(), why));
-  if (res.floquet_verdict == "undecided")
+  // A multiplier that far from 1 is not the trivial one, badly computed: that one is not among those
+  // computed. Lightly damped structures put many multipliers just inside the unit circle (the half
+  // brake's interface-reduced cycle: 4 of modulus 0.9997-0.9998 above it), so the largest few may
+  // all be non-trivial.
+  const bool missing = std::abs(res.floquet[res.trivial] - 1.0) > 0.1;
+  if (missing)
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "  WARNING: no multiplier within 0.1 of 1 among the %zu computed: the trivial one lies below them; "
+                                     "raise -floquet_nev before trusting the verdict\n",
+                                     res.floquet.size()));
+  else if (res.floquet_verdict == "undecided")
     PetscCall(PetscViewerASCIIPrintf(viewer, "  the multipliers' error is as large as the margin: refine -shoot_steps (the trivial "
                                              "multiplier's distance from 1 falls with the step) before trusting the verdict\n"));
   for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
