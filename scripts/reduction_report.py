@@ -84,11 +84,16 @@ def main(argv=None):
                                     "-output", h5], a.np)
             m = re.search(r"-> (\d+) \((\d+) interface DOFs of the contact nodes \+ (\d+) fixed-interface", out)
             mi = re.search(r"characteristic constraint modes of the interface \(.*\): (\d+) DOFs", out)
+            # k_iface: the interface modes kept, "+ s" the statics of the normals added to them
+            # (-reduce_interface_statics, on by default for pairs).
+            ms = re.search(r"\+ (\d+) characteristic constraint modes of the interface(?: \((\d+) of them the statics)?", out)
+            kcol = "-" if k < 0 or not ms else (ms.group(1) if not ms.group(2) else
+                                                "%d+%s" % (int(ms.group(1)) - int(ms.group(2)), ms.group(2)))
             t = re.search(r"time ([0-9.]+) s", out)
             lam, unst = unstable(h5)
             err = [np.min(np.abs(lam - r)) / abs(r) for r in ref]
             dsig = [abs(lam[np.argmin(np.abs(lam - r))].real - r.real) / abs(r) for r in ref]
-            print("%9g %7s %6s %7s %10s %10.2f %12.3e %12.3e %8d" % (fm, mi.group(1) if mi else m.group(1), m.group(3), k if k >= 0 else "-",
+            print("%9g %7s %6s %7s %10s %10.2f %12.3e %12.3e %8d" % (fm, mi.group(1) if mi else m.group(1), m.group(3), kcol,
                                                             t.group(1), wall, max(err), max(dsig), len(unst)))
 
 
