@@ -427,6 +427,11 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(VecDuplicate(x, xpre.out()));
     PetscCall(VecCopy(x, xpre));
   }
+  // Whether a restart can follow this Newton (pre-periods that returned, restarts left); patience
+  // in iterations before making way for it (newton.cpp, Converged).
+  constexpr PetscInt kPatience = 10;
+  auto patience = [&](PetscInt retry) { return pre_periods > 0 && pre_returned_ && retry < pre_retries ? kPatience : 0; };
+  retry_patience_ = patience(0);
   PetscCall(Newton(x, res));
   // Near the instability threshold the cycle's Floquet multipliers crowd 1 (the half brake at
   // mu = 0.05: 0.9993), so the bordered Jacobian is nearly singular there and Newton's basin is
@@ -447,9 +452,10 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
     PetscCall(PrePeriods(U, dU, T, tol, x));
     PetscCall(VecCopy(x, xpre));
     res.pre_retries = retry;
+    retry_patience_ = patience(retry);
     PetscCall(Newton(x, res));
   }
-  pre_tol_used_ = tol;
+  pre_tol_used_ = tol, retry_patience_ = 0;
   PetscCall(GatherZ0(x, res));
   PetscCall(Orbit(aU_, adU_, res.period, res));
   const PetscInt newton_steps = evaluations_ * steps + partial_steps_;
