@@ -121,7 +121,7 @@ PetscErrorCode FloquetSolver::View(const ShootingResult &res, PetscViewer viewer
   if (missing)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  WARNING: no multiplier within 0.1 of 1 among the %zu computed: the trivial one lies below them; "
-                                     "raise -floquet_nev before trusting the verdict\n",
+                                     "raise -floquet_nev (and -floquet_max_dim, until block Arnoldi converges) before trusting the verdict\n",
                                      res.floquet.size()));
   else if (res.floquet_verdict == "undecided")
     PetscCall(PetscViewerASCIIPrintf(viewer, "  the multipliers' error is as large as the margin: refine -shoot_steps (the trivial "
