@@ -276,7 +276,7 @@ private:
   bool            recentred_    = false; // ... and whether the bracket was moved onto it
   PetscReal       pre_T_    = 0; // ... and the period they ended with
   PetscReal       pre_e_    = 0;     // ... their last return distance
-  PetscInt        retry_patience_ = 0; // Newton iterations without going below the start before a restart (0: none to come)
+  PetscInt        retry_patience_ = 0; // Newton iterations without a better iterate before a restart (0: none to come)
   PetscReal       pre_tol_used_ = 0; // ... and the tolerance the last of them ran to (-shoot_pre_retries tighten it)
   bool            pre_returned_ = false; // ... and whether they stopped on the return criterion
   bool            pre_stagnated_ = false; // ... or on -shoot_pre_stagnation, with the two best distances
