@@ -610,7 +610,6 @@ PetscErrorCode Shooting::Newton(Vec x, ShootingResult &res)
   best_res_ = kInf;
   fail_reason_.clear();
   criterion_iterate_ = -1;
-  rec_S_.resize(0, 0), rec_YS_.resize(0, 0), rec_w_.clear(), rec_y_.clear();
   PetscCall(VecCopy(x, best_x_));
   defl_m_ = 0;
   PetscCall(Unpack(x, wU_, wdU_, nullptr));
