@@ -303,12 +303,19 @@ PetscErrorCode Pipeline::RunTransient(TransientResult &res)
 
 PetscErrorCode Pipeline::Sweep(SweepResult &res)
 {
-  // Each rank's points on a model of its own (built and reduced once per rank): the points need
-  // no messages, and this pipeline's model keeps its operating point for the analyses after.
-  Pipeline point(PETSC_COMM_SELF);
+  // Each rank's points on a model of its own: the points need no messages, and this pipeline's
+  // model keeps its operating point for the analyses after. On one rank that model shares this
+  // one's matrices (built and reduced once); on several, each rank builds and reduces its own.
+  PetscMPIInt size;
   PetscFunctionBeginUser;
-  PetscCall(point.BuildModel());
-  PetscCall(point.Reduce());
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  const bool share = size == 1 && model.M;
+  Pipeline   point(share ? comm_ : PETSC_COMM_SELF);
+  if (share) PetscCall(ModelShare(model, point.model));
+  else {
+    PetscCall(point.BuildModel());
+    PetscCall(point.Reduce());
+  }
   PetscCall(point.eqs.SetFromOptions());
   PetscCall(point.stab.SetComputeModes(false));
   PetscCall(point.stab.SetFromOptions());

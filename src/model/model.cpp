@@ -241,4 +241,27 @@ PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ModelShare(const Model &src, Model &dst)
+{
+  PetscMPIInt same;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_compare(src.comm(), dst.comm(), &same));
+  PetscCheck(same == MPI_IDENT || same == MPI_CONGRUENT, src.comm(), PETSC_ERR_ARG_WRONG, "ModelShare: the models must be on one communicator");
+  auto share = [](auto obj, auto &h) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    if (obj) PetscCall(PetscObjectReference((PetscObject)obj));
+    *h.out() = obj;
+    PetscFunctionReturn(0);
+  };
+  PetscCall(share(src.M.get(), dst.M));
+  PetscCall(share(src.C.get(), dst.C));
+  PetscCall(share(src.K.get(), dst.K));
+  PetscCall(share(src.F.get(), dst.F));
+  dst.contacts = src.contacts;
+  dst.name     = src.name;
+  dst.mesh.reset();
+  dst.expansion.reset();
+  PetscFunctionReturn(0);
+}
+
 } // namespace squeal
