@@ -15,8 +15,9 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   hWs_.resize(0, 0);
   sparse_ = false;
   v_.setZero(3 * nc);
+  hist_.setZero(3 * nc, 3), n_hist_ = 0;
   solver_ = ContactSolver::kFixedPoint; // SetSolver sizes Newton's arrays for this W
-  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = 0;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = mixed_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -39,8 +40,9 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
   hW_.resize(0, 0);
   sparse_ = true;
   v_.setZero(3 * nc);
+  hist_.setZero(3 * nc, 3), n_hist_ = 0;
   solver_ = ContactSolver::kFixedPoint;
-  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = 0;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = mixed_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -59,22 +61,30 @@ LocalSolveInfo LocalContactSolver::Solve(const Eigen::VectorXd &w_f, const Eigen
     if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r);
     p_.mu          = cs_->Mu();
     p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
-    return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
+    Predict(r);
+    const LocalSolveInfo info = ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
+    Remember(r);
+    return info;
   }
   return SolveSized<Eigen::Dynamic>(w_f, gap0, r);
 }
 
-void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it)
+void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it, PetscInt anderson)
 {
   const Eigen::Index m = v_.size();
   solver_              = s;
   newton_max_it_       = newton_max_it;
+  anderson_            = std::max<PetscInt>(0, std::min(anderson, kMaxAnderson));
   factor_valid_        = false;
+  a_n_                 = 0;
   if (s != ContactSolver::kNewton) {
     J_.resize(0, 0), Js_.resize(0, 0), lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>();
+    a_f_.resize(0, 0), a_g_.resize(0, 0), a_v_.resize(0, 0), a_df_.resize(0, 0);
     return;
   }
   for (Eigen::VectorXd *x : {&r0_, &F_, &Ft_, &d_, &rt_, &vt_, &hWd_}) x->setZero(m);
+  const Eigen::Index na = anderson_ > 0 ? anderson_ + 1 : 0;
+  a_f_.setZero(m, na), a_g_.setZero(m, na), a_v_.setZero(m, na), a_df_.setZero(m, std::max<Eigen::Index>(na - 1, 0));
   g_.setZero(3, m), gd_.setZero(3, m);
   if (!sparse_) {
     J_.setZero(m, m);
@@ -212,18 +222,66 @@ bool LocalContactSolver::Direction()
   return d_.allFinite();
 }
 
+bool LocalContactSolver::Mix(CRef r)
+{
+  const Eigen::Index na = a_f_.cols();
+  if (a_n_ == na) { // full: drop the oldest
+    const Eigen::Index k = na - 1;
+    a_f_.leftCols(k) = a_f_.rightCols(k);
+    a_g_.leftCols(k) = a_g_.rightCols(k);
+    a_v_.leftCols(k) = a_v_.rightCols(k);
+    --a_n_;
+  }
+  a_f_.col(a_n_) = d_;
+  a_g_.col(a_n_) = r + d_;
+  a_v_.col(a_n_) = v_ + hWd_;
+  ++a_n_;
+  const PetscInt p = a_n_ - 1;
+  if (p < 1) return false;
+  // gamma = argmin || f_p - dF gamma ||_2, dF_j = f_{j+1} - f_j: normal equations of at most
+  // kMaxAnderson unknowns on fixed-capacity storage (no allocation), the columns scaled to unit norm.
+  using Small = Eigen::Matrix<PetscReal, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxAnderson, kMaxAnderson>;
+  using SmallV = Eigen::Matrix<PetscReal, Eigen::Dynamic, 1, 0, kMaxAnderson, 1>;
+  auto  dF = a_df_.leftCols(p);
+  SmallV s(p), b(p);
+  for (PetscInt j = 0; j < p; ++j) {
+    dF.col(j) = a_f_.col(j + 1) - a_f_.col(j);
+    const PetscReal n = dF.col(j).norm();
+    if (!(n > 0) || !std::isfinite(n)) return false;
+    s[j] = 1 / n;
+    dF.col(j) *= s[j];
+  }
+  Small A(p, p);
+  A.noalias() = dF.transpose() * dF;
+  b.noalias() = dF.transpose() * a_f_.col(p);
+  Eigen::LDLT<Small> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+  SmallV gamma = ldlt.solve(b);
+  // r_mix = g_p - sum_j gamma_j (g_{j+1} - g_j) s_j, and the same combination of the v(g).
+  rt_ = a_g_.col(p);
+  vt_ = a_v_.col(p);
+  for (PetscInt j = 0; j < p; ++j) {
+    const PetscReal c = gamma[j] * s[j];
+    rt_ -= c * (a_g_.col(j + 1) - a_g_.col(j));
+    vt_ -= c * (a_v_.col(j + 1) - a_v_.col(j));
+  }
+  return rt_.allFinite() && vt_.allFinite();
+}
+
 LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
 {
   const Eigen::Index nc = rho_n_.size();
   p_.mu                 = cs_->Mu();
   ++newton_solves_;
-  r0_ = r;
+  Predict(r);
+  r0_ = r; // the fallback's start: the fixed point's own guess
   if (sparse_) v_.noalias() = hWs_ * r;
   else v_.noalias() = hW_ * r;
   v_ += w_f;
   PetscReal phi = Residual(gap0, r, v_, F_, true);
   PetscInt  k   = 0;
   bool      ok  = false;
+  a_n_          = 0; // the chord map changes with w_f and gap0
   for (;; ++k) {
     if (std::isnan(phi)) break;
     PetscReal rn_sum = 0;
@@ -241,6 +299,7 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
       // In the second half of the iteration budget, plain Newton (a fresh J at every iteration):
       // chord steps that only halve ||F|| would otherwise run into the limit and the fallback.
       const bool fresh = !factor_valid_ || 2 * k >= newton_max_it_;
+      if (fresh) a_n_ = 0; // another J0, another chord map
       if (fresh && !Factor()) break;
       if (!Direction()) {
         factor_valid_ = false;
@@ -249,6 +308,17 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
       }
       if (sparse_) hWd_.noalias() = hWs_ * d_;
       else hWd_.noalias() = hW_ * d_;
+      // Anderson mixing: the chord map is nearly linear between status changes, where the mixed
+      // point converges as GMRES on the chord's error operator would, at O(3 n_c depth) per step
+      // instead of the chord's linear rate. Taken when it halves ||F||, else the chord step.
+      if (!fresh && anderson_ > 0 && Mix(r)) {
+        const PetscReal phia = Residual(gap0, rt_, vt_, Ft_, false);
+        if (phia <= 0.5 * phi) {
+          accepted = true;
+          ++mixed_;
+          break;
+        }
+      }
       PetscReal alpha = 1;
       for (int ls = 0; ls < (fresh ? 30 : 1) && !accepted; ++ls, alpha *= 0.5) {
         rt_                  = r + alpha * d_;
@@ -278,6 +348,7 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
     info.fallback = true;
   }
   info.iterations += k;
+  Remember(r);
   return info;
 }
 

@@ -123,18 +123,23 @@ PetscErrorCode ThetaIntegrator::SetFixedPoint(PetscReal tol, PetscInt max_it)
 // (transients of the reduced pads, 200 steps per period): 175 points (pad_cycle.yaml) 7.7 iterations
 // per step against 12.9 passes, the same wall time (3.42-3.63 s against 3.41-3.53 s); 451 points
 // (pad_large_cycle.yaml) 11.3 against 31.9, 21.4 s against 22.0 s (the LU of the 1353 x 1353 J,
-// kept ~14 steps, is a third of it). Below, the fixed point is as fast and needs no LU.
+// kept ~14 steps, is a third of it). Below, the fixed point is as fast and needs no LU. Since the
+// extrapolated start (-theta_contact_predict) the fixed point is ahead on 451 points too (10.5 s
+// against 14.3 s, docs/records.md); the switch is left until a larger model measures it.
 static constexpr PetscInt kSsnAutoContacts = 450;
 
-PetscErrorCode ThetaIntegrator::SetContactSolver(const char *name, PetscInt ssn_max_it)
+PetscErrorCode ThetaIntegrator::SetContactSolver(const char *name, PetscInt ssn_max_it, PetscInt ssn_anderson)
 {
   PetscFunctionBeginUser;
   const std::string n = name ? name : "";
   PetscCheck(n == "fp" || n == "ssn" || n == "auto", comm_, kErrInput, "option -%scontact_solver %s: expected fp, ssn or auto",
              prefix_.c_str(), name ? name : "(null)");
   PetscCheck(ssn_max_it >= 1, comm_, kErrInput, "option -%sssn_max_it = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), ssn_max_it);
+  PetscCheck(ssn_anderson >= 0 && ssn_anderson <= 8, comm_, kErrInput, "option -%sssn_anderson = %" PetscInt_FMT ": expected 0 to 8",
+             prefix_.c_str(), ssn_anderson);
   contact_solver_ = n == "fp" ? 0 : n == "ssn" ? 1 : 2;
   ssn_max_it_     = ssn_max_it;
+  ssn_anderson_   = ssn_anderson;
   PetscFunctionReturn(0);
 }
 
@@ -220,9 +225,19 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                               "ThetaIntegrator::SetContactSolver", csolvers, 3, csolvers[contact_solver_], &contact_solver_, nullptr));
   PetscCall(PetscOptionsInt("-ssn_max_it", "Semi-smooth Newton iteration limit per step (then the fixed point; counted and reported)",
                             "ThetaIntegrator::SetContactSolver", ssn_max_it_, &ssn_max_it_, nullptr));
+  PetscCall(PetscOptionsInt("-contact_predict",
+                            "Starting guess of the contact problem along a trajectory: 0 the previous step's reactions, 1 or 2 their "
+                            "linear or quadratic extrapolation (run-time-sized and sparse steps; the compile-time-sized 3-DOF kernels use 0)",
+                            "LocalContactSolver::SetPredictor", contact_predict_, &contact_predict_, nullptr));
+  PetscCall(PetscOptionsInt("-ssn_anderson",
+                            "Semi-smooth Newton: Anderson mixing of this many past chord steps (steps with the kept LU), taken when it "
+                            "halves the residual (0: plain chord steps; at most 8)",
+                            "ThetaIntegrator::SetContactSolver", ssn_anderson_, &ssn_anderson_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
-  PetscCall(SetContactSolver(csolvers[contact_solver_], ssn_max_it_));
+  PetscCheck(contact_predict_ >= 0 && contact_predict_ <= 2, comm_, kErrInput, "option -%scontact_predict %" PetscInt_FMT ": expected 0, 1 or 2",
+             prefix_.c_str(), contact_predict_);
+  PetscCall(SetContactSolver(csolvers[contact_solver_], ssn_max_it_, ssn_anderson_));
   PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
   PetscCall(SetDelassusMax(delassus_max_, delassus_drop_));
   PetscCall(ConfigureSolver());
@@ -350,7 +365,8 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   else local_.Setup(model.contacts, W_, h, rho_scale_);
   local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
   const bool ssn = contact_solver_ == 1 || (contact_solver_ == 2 && nc_ >= kSsnAutoContacts);
-  if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_);
+  if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_, ssn_anderson_);
+  local_.SetPredictor(contact_predict_);
   if (dense_) SetUpKernel();
   PetscFunctionReturn(0);
 }

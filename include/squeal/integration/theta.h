@@ -69,7 +69,7 @@ public:
   PetscErrorCode SetParallelSolver(const char *name, PetscReal cg_rtol);
   // Local contact solver (S6-7): "fp" (fixed point), "ssn" (semi-smooth Newton, fixed point as
   // fallback, LocalContactSolver), "auto" (ssn from n_c >= 450 on: the measured break-even, theta.cpp); Newton's iteration limit.
-  PetscErrorCode SetContactSolver(const char *name, PetscInt ssn_max_it);
+  PetscErrorCode SetContactSolver(const char *name, PetscInt ssn_max_it, PetscInt ssn_anderson = 5);
   // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*,
   // -theta_contact_solver, -theta_ssn_max_it.
   PetscErrorCode SetFromOptions();
@@ -135,6 +135,8 @@ private:
   PetscReal    theta_    = 0.5, h_ = 0, fp_tol_ = 1e-12, rho_scale_ = 1.0, r_ref_ = 1.0;
   PetscInt     fp_max_it_ = 500, dense_max_ = PETSC_DECIDE;
   PetscInt     contact_solver_ = 0, ssn_max_it_ = 30; // -theta_contact_solver: 0 fp, 1 ssn, 2 auto
+  PetscInt     contact_predict_ = 2;                 // -theta_contact_predict: order of the starting guess's extrapolation
+  PetscInt     ssn_anderson_ = 5;                    // -theta_ssn_anderson: depth of the mixing of Newton's chord steps
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
