@@ -304,18 +304,19 @@ PetscErrorCode Pipeline::RunTransient(TransientResult &res)
 PetscErrorCode Pipeline::Sweep(SweepResult &res)
 {
   // Each rank's points on a model of its own: the points need no messages, and this pipeline's
-  // model keeps its operating point for the analyses after. On one rank that model shares this
-  // one's matrices (built and reduced once); on several, each rank builds and reduces its own.
+  // model keeps its operating point for the analyses after. The model is built and reduced once:
+  // on one rank the points' model shares this one's matrices, on several each rank gets a copy of
+  // the whole (a reduced model is small; before, each rank built and reduced its own).
   PetscMPIInt size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm_, &size));
-  const bool share = size == 1 && model.M;
-  Pipeline   point(share ? comm_ : PETSC_COMM_SELF);
-  if (share) PetscCall(ModelShare(model, point.model));
-  else {
+  const bool built = (bool)model.M;
+  Pipeline   point(size == 1 && built ? comm_ : PETSC_COMM_SELF);
+  if (!built) {
     PetscCall(point.BuildModel());
     PetscCall(point.Reduce());
-  }
+  } else if (size == 1) PetscCall(ModelShare(model, point.model));
+  else PetscCall(ModelReplicate(model, point.model));
   PetscCall(point.eqs.SetFromOptions());
   PetscCall(point.stab.SetComputeModes(false));
   PetscCall(point.stab.SetFromOptions());

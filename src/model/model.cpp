@@ -202,21 +202,23 @@ PetscErrorCode Model::Export(const char *dir, const char *format) const
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst)
+// The whole of src on rank 0 (all_ranks false) or on every rank, as a model on PETSC_COMM_SELF.
+static PetscErrorCode ModelGather(const Model &src, Model &dst, bool all_ranks)
 {
   PetscMPIInt rank;
   const PetscInt N = src.Size();
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(src.comm(), &rank));
-  PetscCheck(dst.comm() == PETSC_COMM_SELF, src.comm(), PETSC_ERR_ARG_WRONG, "ModelGatherToRankZero: the copy must be on PETSC_COMM_SELF");
+  PetscCheck(dst.comm() == PETSC_COMM_SELF, src.comm(), PETSC_ERR_ARG_WRONG, "ModelGather: the copy must be on PETSC_COMM_SELF");
+  const bool mine = all_ranks || rank == 0;
   Handle<IS> all;
-  PetscCall(ISCreateStride(PETSC_COMM_SELF, rank == 0 ? N : 0, 0, 1, all.out()));
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, mine ? N : 0, 0, 1, all.out()));
   auto gather = [&](Mat A, MatH &out) -> PetscErrorCode {
     Mat *sub;
     IS   is = all;
     PetscFunctionBeginUser;
     PetscCall(MatCreateSubMatrices(A, 1, &is, &is, MAT_INITIAL_MATRIX, &sub));
-    if (rank == 0) {
+    if (mine) {
       PetscCall(PetscObjectReference((PetscObject)sub[0]));
       *out.out() = sub[0];
     }
@@ -228,18 +230,25 @@ PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst)
   if (src.HasDamping()) PetscCall(gather(src.C, dst.C));
   VecScatter sc;
   Vec        f0;
-  PetscCall(VecScatterCreateToZero(src.F, &sc, &f0));
+  if (all_ranks) PetscCall(VecScatterCreateToAll(src.F, &sc, &f0));
+  else PetscCall(VecScatterCreateToZero(src.F, &sc, &f0));
   PetscCall(VecScatterBegin(sc, src.F, f0, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecScatterEnd(sc, src.F, f0, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecScatterDestroy(&sc));
-  if (rank == 0) *dst.F.out() = f0;
+  if (mine) *dst.F.out() = f0;
   else PetscCall(VecDestroy(&f0));
   dst.contacts = src.contacts;
   dst.name     = src.name;
-  dst.mesh      = src.mesh;
-  dst.expansion = src.expansion; // built on rank 0, where the copy lives
+  if (!all_ranks) {
+    dst.mesh      = src.mesh;
+    dst.expansion = src.expansion; // built on rank 0, where the copy lives
+  }
   PetscFunctionReturn(0);
 }
+
+PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst) { return ModelGather(src, dst, false); }
+
+PetscErrorCode ModelReplicate(const Model &src, Model &dst) { return ModelGather(src, dst, true); }
 
 PetscErrorCode ModelShare(const Model &src, Model &dst)
 {

@@ -55,6 +55,10 @@ private:
 // Collective on src's communicator.
 PetscErrorCode ModelGatherToRankZero(const Model &src, Model &dst);
 
+// The same on every rank: dst, on PETSC_COMM_SELF, holds the whole of src (no mesh or expansion).
+// For the sweep on several ranks, whose points each rank solves alone. Collective on src's communicator.
+PetscErrorCode ModelReplicate(const Model &src, Model &dst);
+
 // dst shares src's matrices and load (references, no copy) and gets its own copy of the contact
 // set, so that dst's operating point (ContactSet::SetFriction) can move while src's stays; no mesh
 // or expansion. dst must be on src's communicator. For the sweep on one rank, which used to build
