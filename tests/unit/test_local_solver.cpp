@@ -308,7 +308,9 @@ TEST(LocalSolver, AndersonAndPredictorFollowASmoothTrajectory)
         ASSERT_TRUE(info.converged) << "solver " << k << " problem " << i;
         EXPECT_FALSE(info.fallback) << "solver " << k << " problem " << i;
         its[k] += info.iterations;
-        if (k) EXPECT_LT(RelErr(r[k], r[0]), 1e-12) << "solver " << k << " problem " << i;
+        if (k) {
+          EXPECT_LT(RelErr(r[k], r[0]), 1e-12) << "solver " << k << " problem " << i;
+        }
       }
     }
     PetscPrintf(PETSC_COMM_WORLD,
