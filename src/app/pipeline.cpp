@@ -1,4 +1,5 @@
 #include "squeal/app/pipeline.h"
+#include "squeal/core/interrupt.h"
 #include "squeal/core/errors.h"
 #include "squeal/model/builders.h"
 #include "squeal/reduction/craig_bampton.h"
@@ -270,6 +271,8 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
   PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
   PetscErrorCode err = Shoot();
   PetscCall(PetscPopErrorHandler());
+  // The handler above kept the interrupt's own message from the screen: say it here.
+  PetscCheck(err != PETSC_ERR_SIG, comm_, PETSC_ERR_SIG, "interrupted by %s during the shooting of -analyses auto", InterruptSignalName());
   if (err && err != PETSC_ERR_NOT_CONVERGED) SETERRQ(comm_, err, "auto: shooting failed: %s", cycle.reason.empty() ? "(no reason recorded)" : cycle.reason.c_str());
   if (route.shooting && (err || !cycle.converged)) {
     route.shooting = false, route.newton_failed = true;
