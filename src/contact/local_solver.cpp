@@ -59,10 +59,8 @@ LocalSolveInfo LocalContactSolver::Solve(const Eigen::VectorXd &w_f, const Eigen
   if (sparse_) {
     RefreshFriction();
     if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r);
-    p_.mu          = cs_->Mu();
-    p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
     Predict(r);
-    const LocalSolveInfo info = ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
+    const LocalSolveInfo info = Passes(w_f, gap0, r);
     Remember(r);
     return info;
   }
