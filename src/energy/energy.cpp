@@ -7,6 +7,7 @@
 #include "squeal/shooting/shooting.h"
 
 #include <cmath>
+#include <limits>
 
 namespace squeal {
 
@@ -44,38 +45,36 @@ PetscErrorCode EnergyAnalysis::SetFromOptions()
 
 void EnergyAnalysis::Powers(PetscReal q, PetscReal *P_R, PetscReal *P_I, std::vector<PetscReal> *J) const
 {
+  using Arr                     = Eigen::Array<PetscReal, Eigen::Dynamic, 1>;
   const ContactSet &cs          = *cs_;
   const bool        rectilinear = cs.law == FrictionLaw::Rectilinear;
-  const size_t      ns          = cos_.size();
+  const Eigen::Index ns         = (Eigen::Index)cos_.size();
   const bool        impacts     = Wn_.size() > 0 || J;
-  PetscReal         sum         = 0;
+  const Eigen::Map<const Arr> C(cos_.data(), ns), S(sin_.data(), ns);
+  // sqrt(max(m2, tiny)) instead of a test: the numerator is 0 where m2 is (st = ub = 0).
+  const PetscReal tiny = std::numeric_limits<PetscReal>::min();
+  PetscReal       sum  = 0;
   if (impacts) J_.assign(N_.size(), 0.0);
-  // Points outside, samples inside: the point's coefficients stay in registers and the inner loop
-  // is plain arithmetic (sqrt, not hypot: the velocities are far from overflow). The scan calls
-  // this n_scan + bisections times, samples x points each: 4e8 evaluations for 52 points.
+  // Points outside, samples inside, each point's samples as one branch-free array expression that
+  // Eigen evaluates in one SIMD pass (separated samples add 0 through max(rn, 0) rather than being
+  // skipped). The scan calls this n_scan + bisections times, samples x points each: 1.4e9
+  // evaluations for the 175-point pad, 3.6 s as a scalar loop with branches.
   for (size_t p = 0; p < N_.size(); ++p) {
     const PetscReal pr = q * psi_[p].real(), pi = q * psi_[p].imag(), Np = N_[p], V = speed_[p];
     const PetscReal tr = -q * omega_ * phit_[p].real(), ti = -q * omega_ * phit_[p].imag();
     const PetscReal br = -q * omega_ * phib_[p].real(), bi = -q * omega_ * phib_[p].imag();
-    PetscReal       acc = 0, tension = 0;
-    for (size_t k = 0; k < ns; ++k) {
-      // Re(z e^{i w t}) = Re z cos - Im z sin; velocity Re(i w z e^{i w t}) = -w (Re z sin + Im z cos).
-      const PetscReal c = cos_[k], s = sin_[k];
-      const PetscReal rn = Np + (pr * c - pi * s);
-      if (rn <= 0) {
-        tension -= rn;
-        continue;
-      }
-      const PetscReal ut = tr * s + ti * c, ub = br * s + bi * c;
-      const PetscReal st = V - ut; // surface velocity relative to the structure
-      if (rectilinear) acc += rn * (st > 0 ? 1.0 : (st < 0 ? -1.0 : 0.0)) * ut;
-      else {
-        const PetscReal m2 = st * st + ub * ub;
-        if (m2 > 0) acc += rn * (st * ut - ub * ub) / std::sqrt(m2);
-      }
+    // Re(z e^{i w t}) = Re z cos - Im z sin; velocity Re(i w z e^{i w t}) = -w (Re z sin + Im z cos).
+    const auto rn = Np + pr * C - pi * S;
+    const auto ut = tr * S + ti * C;
+    const auto st = V - ut; // surface velocity relative to the structure
+    PetscReal  acc;
+    if (rectilinear) acc = (rn.max(0) * ut * st / st.abs().max(tiny)).sum(); // rn sign(st) ut
+    else {
+      const auto ub = br * S + bi * C;
+      acc           = (rn.max(0) * (st * ut - ub * ub) / (st * st + ub * ub).max(tiny).sqrt()).sum();
     }
     sum += acc;
-    if (impacts) J_[p] = tension * period_ / ns;
+    if (impacts) J_[p] = (-rn).max(0).sum() * period_ / ns;
   }
   *P_R = cs.Mu() * sum / ns;
   *P_I = 0;
