@@ -100,8 +100,13 @@ PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
 {
   static const char *const ours[]    = {"model_", "contact_", "reduce_", "stab_", "eq_", "sweep_",
                                         "theta_", "transient_", "energy_", "shoot_", "floquet_", "cont_", "steady_"};
-  static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_",
-                                        "_ds_", "_rg_", "_fn_", "_mat_", "_svd_", "_view", "_monitor", "converged_reason"};
+  // PETSc objects under our prefixes (-shoot_snes_monitor, -stab_pep_view): read when the object is
+  // made, so judged only at the end of the run. Our own monitors and viewers (-floquet_monitor,
+  // -stab_view) are read with the other options, so a name like -shoot_monitor, which no object
+  // reads, is refused here: a long run used to show only an end-of-run warning for it, and an
+  // interrupted one nothing.
+  static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_", "_ds_",
+                                        "_rg_", "_fn_", "_mat_", "_svd_", "_vec_", "_is_", "_sf_", "_dm_", "_viewer_", "_draw_"};
   std::string unknown;
   int         count = 0;
   PetscFunctionBeginUser;

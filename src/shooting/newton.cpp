@@ -172,6 +172,7 @@ PetscErrorCode ShootingCallbacks::Converged(SNES snes, PetscInt it, PetscReal, P
   }
   PetscBool mon = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
+  mon = (PetscBool)(mon || s->monitor);
   if (mon) {
     // Distance from the sliding equilibrium (the trivial root) and the flow's contact regime.
     PetscReal dq, open = 0, stick = 0;

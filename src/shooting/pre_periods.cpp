@@ -203,6 +203,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   Eigen::VectorXd     r;
   PetscBool           mon = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
+  mon = (PetscBool)(mon || monitor);
   PetscCall(VecDuplicate(U0, U.out()));
   PetscCall(VecDuplicate(dU0, dU.out()));
   PetscCall(VecCopy(U0, U));

@@ -64,6 +64,10 @@ PetscErrorCode Shooting::SetFromOptions()
                             "Largest 2N + 1 for which the exact bordered Jacobian is built in one tangent integration and factorised "
                             "(above: GMRES on tangent products)",
                             "Shooting", jacobian_dense_max, &jacobian_dense_max, nullptr));
+  PetscCall(PetscOptionsBool("-monitor",
+                             "One line per pre-period return and per Newton iteration: return distance, period, distance from the "
+                             "equilibrium, contact regime (-shoot_snes_monitor prints the same)",
+                             "Shooting", monitor, &monitor, nullptr));
   PetscCall(PetscOptionsBool("-linear_pc",
                              "Above -shoot_jacobian_dense_max: precondition GMRES with the LU of the bordered Jacobian of the steady "
                              "sliding linearisation's monodromy (one step tangent raised to N_s by squaring)",

@@ -166,6 +166,7 @@ public:
   // equilibrium reactions, raised to N_s by squaring; once per solve), up to 2N <= linear_pc_max.
   PetscBool linear_pc     = PETSC_TRUE;
   PetscBool ew            = PETSC_TRUE; // -shoot_ew: inexact Newton for GMRES on products (Eisenstat-Walker)
+  PetscBool monitor       = PETSC_FALSE; // -shoot_monitor: the pre-periods' and Newton's lines (also -shoot_snes_monitor)
   PetscInt  linear_pc_max = 6000;
   // -shoot_recycle: with -shoot_linear_pc, keep up to this many directions of the earlier Krylov
   // solves; at each Newton iteration their exact products (one block tangent integration, at the
