@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace squeal {
@@ -17,7 +18,8 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   v_.setZero(3 * nc);
   hist_.setZero(3 * nc, 3), n_hist_ = 0;
   solver_ = ContactSolver::kFixedPoint; // SetSolver sizes Newton's arrays for this W
-  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = mixed_ = 0;
+  anderson_ = fp_anderson_ = a_n_ = 0;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = mixed_ = mixed_passes_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -42,7 +44,8 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
   v_.setZero(3 * nc);
   hist_.setZero(3 * nc, 3), n_hist_ = 0;
   solver_ = ContactSolver::kFixedPoint;
-  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = mixed_ = 0;
+  anderson_ = fp_anderson_ = a_n_ = 0;
+  newton_solves_ = fallbacks_ = newton_steps_ = factorisations_ = mixed_ = mixed_passes_ = 0;
   rho_n_.resize(nc);
   rho_t_.resize(nc);
   speed_.resize(nc);
@@ -76,13 +79,13 @@ void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it, Pets
   factor_valid_        = false;
   a_n_                 = 0;
   if (s != ContactSolver::kNewton) {
+    anderson_ = 0;
     J_.resize(0, 0), Js_.resize(0, 0), lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>();
-    a_f_.resize(0, 0), a_g_.resize(0, 0), a_v_.resize(0, 0), a_df_.resize(0, 0);
+    SizeAnderson();
     return;
   }
   for (Eigen::VectorXd *x : {&r0_, &F_, &Ft_, &d_, &rt_, &vt_, &hWd_}) x->setZero(m);
-  const Eigen::Index na = anderson_ > 0 ? anderson_ + 1 : 0;
-  a_f_.setZero(m, na), a_g_.setZero(m, na), a_v_.setZero(m, na), a_df_.setZero(m, std::max<Eigen::Index>(na - 1, 0));
+  SizeAnderson();
   g_.setZero(3, m), gd_.setZero(3, m);
   if (!sparse_) {
     J_.setZero(m, m);
@@ -105,19 +108,62 @@ void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it, Pets
   slu_.analyzePattern(Js_);
 }
 
+void LocalContactSolver::SetFixedPointAnderson(PetscInt depth)
+{
+  fp_anderson_ = std::max<PetscInt>(0, std::min(depth, kMaxAnderson));
+  a_n_         = 0;
+  SizeAnderson();
+}
+
+void LocalContactSolver::SizeAnderson()
+{
+  const Eigen::Index m = v_.size(), depth = std::max(anderson_, fp_anderson_);
+  const Eigen::Index na = depth > 0 ? depth + 1 : 0;
+  a_f_.setZero(m, na), a_g_.setZero(m, na), a_v_.setZero(m, na), a_df_.setZero(m, std::max<Eigen::Index>(na - 1, 0));
+  const bool mixing_or_newton = na > 0 || solver_ == ContactSolver::kNewton;
+  rt_.setZero(mixing_or_newton ? m : 0), vt_.setZero(mixing_or_newton ? m : 0), rin_.setZero(fp_anderson_ > 0 ? m : 0);
+}
+
 LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
 {
   p_.mu          = cs_->Mu();
   p_.rectilinear = cs_->law == FrictionLaw::Rectilinear;
-  if (sparse_) return ContactPasses(p_, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
   // The storage types of SolveSized<Eigen::Dynamic>, so that a fallback repeats the fixed point's
   // operations exactly (Eigen may order a product differently on a Map than on a Matrix).
   const Eigen::Index                    nc = rho_n_.size();
   using MapC                            = Eigen::Map<const Eigen::VectorXd>;
-  const Eigen::Map<const Eigen::MatrixXd> hW(hW_.data(), 3 * nc, 3 * nc);
+  const Eigen::Map<const Eigen::MatrixXd> hW(hW_.data(), sparse_ ? 0 : 3 * nc, sparse_ ? 0 : 3 * nc);
   const MapC                            rho_n(rho_n_.data(), nc), rho_t(rho_t_.data(), nc), speed(speed_.data(), nc);
   Eigen::Map<Eigen::VectorXd>           v(v_.data(), 3 * nc);
-  return ContactPasses(p_, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+  auto run = [&](const FixedPointParams &p) {
+    return sparse_ ? ContactPasses(p, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_) : ContactPasses(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+  };
+  if (fp_anderson_ == 0) return run(p_);
+  // One pass at a time, each from the mixed point of the last ones (SetFixedPointAnderson).
+  FixedPointParams p1 = p_;
+  p1.max_it           = 1;
+  PetscReal last      = std::numeric_limits<PetscReal>::infinity();
+  LocalSolveInfo info;
+  a_n_ = 0;
+  for (PetscInt it = 1; it <= p_.max_it; ++it) {
+    rin_         = r;
+    p1.v_current = it > 1;
+    info         = run(p1);
+    if (info.converged || std::isnan(info.residual)) return {it, info.residual, info.converged};
+    // A pass that changed r more than the last one: the history no longer describes the map.
+    if (info.residual > last) a_n_ = 0;
+    last                 = info.residual;
+    const Eigen::Index j = AndersonSlot(fp_anderson_);
+    a_f_.col(j)          = r - rin_;
+    a_g_.col(j)          = r;
+    a_v_.col(j)          = v_;
+    if (Mix()) {
+      r  = rt_;
+      v_ = vt_;
+      ++mixed_passes_;
+    }
+  }
+  return {p_.max_it, info.residual, false};
 }
 
 // One Jacobi pass of the fixed point's projections, r -> P(r), written as the passes write it (the
@@ -220,20 +266,23 @@ bool LocalContactSolver::Direction()
   return d_.allFinite();
 }
 
-bool LocalContactSolver::Mix(CRef r)
+Eigen::Index LocalContactSolver::AndersonSlot(PetscInt depth)
 {
-  const Eigen::Index na = a_f_.cols();
-  if (a_n_ == na) { // full: drop the oldest
-    const Eigen::Index k = na - 1;
-    a_f_.leftCols(k) = a_f_.rightCols(k);
-    a_g_.leftCols(k) = a_g_.rightCols(k);
-    a_v_.leftCols(k) = a_v_.rightCols(k);
-    --a_n_;
+  const Eigen::Index na = depth + 1;
+  if (a_n_ >= na) { // full: drop the oldest
+    const Eigen::Index k = na - 1, o = a_n_ - k;
+    for (Eigen::Index j = 0; j < k; ++j) {
+      a_f_.col(j) = a_f_.col(j + o);
+      a_g_.col(j) = a_g_.col(j + o);
+      a_v_.col(j) = a_v_.col(j + o);
+    }
+    a_n_ = k;
   }
-  a_f_.col(a_n_) = d_;
-  a_g_.col(a_n_) = r + d_;
-  a_v_.col(a_n_) = v_ + hWd_;
-  ++a_n_;
+  return a_n_++;
+}
+
+bool LocalContactSolver::Mix()
+{
   const PetscInt p = a_n_ - 1;
   if (p < 1) return false;
   // gamma = argmin || f_p - dF gamma ||_2, dF_j = f_{j+1} - f_j: normal equations of at most
@@ -309,7 +358,15 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
       // Anderson mixing: the chord map is nearly linear between status changes, where the mixed
       // point converges as GMRES on the chord's error operator would, at O(3 n_c depth) per step
       // instead of the chord's linear rate. Taken when it halves ||F||, else the chord step.
-      if (!fresh && anderson_ > 0 && Mix(r)) {
+      bool mixed = false;
+      if (!fresh && anderson_ > 0) {
+        const Eigen::Index j = AndersonSlot(anderson_);
+        a_f_.col(j)          = d_;
+        a_g_.col(j)          = r + d_;
+        a_v_.col(j)          = v_ + hWd_;
+        mixed                = Mix();
+      }
+      if (mixed) {
         const PetscReal phia = Residual(gap0, rt_, vt_, Ft_, false);
         if (phia <= 0.5 * phi) {
           accepted = true;

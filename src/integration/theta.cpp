@@ -233,8 +233,14 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "Semi-smooth Newton: Anderson mixing of this many past chord steps (steps with the kept LU), taken when it "
                             "halves the residual (0: plain chord steps; at most 8)",
                             "ThetaIntegrator::SetContactSolver", ssn_anderson_, &ssn_anderson_, nullptr));
+  PetscCall(PetscOptionsInt("-fp_anderson",
+                            "Fixed point: Anderson mixing of this many past passes, each pass started from the mixed point "
+                            "(run-time-sized and sparse steps; 0: plain passes; at most 8)",
+                            "LocalContactSolver::SetFixedPointAnderson", fp_anderson_, &fp_anderson_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  PetscCheck(fp_anderson_ >= 0 && fp_anderson_ <= 8, comm_, kErrInput, "option -%sfp_anderson = %" PetscInt_FMT ": expected 0 to 8",
+             prefix_.c_str(), fp_anderson_);
   PetscCheck(contact_predict_ >= 0 && contact_predict_ <= 2, comm_, kErrInput, "option -%scontact_predict %" PetscInt_FMT ": expected 0, 1 or 2",
              prefix_.c_str(), contact_predict_);
   PetscCall(SetContactSolver(csolvers[contact_solver_], ssn_max_it_, ssn_anderson_));
@@ -367,6 +373,7 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   const bool ssn = contact_solver_ == 1 || (contact_solver_ == 2 && nc_ >= kSsnAutoContacts);
   if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_, ssn_anderson_);
   local_.SetPredictor(contact_predict_);
+  local_.SetFixedPointAnderson(fp_anderson_);
   if (dense_) SetUpKernel();
   PetscFunctionReturn(0);
 }

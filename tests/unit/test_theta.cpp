@@ -318,10 +318,10 @@ TEST(Theta, FixedSizeKernelMatchesRunTimeSizesAndSparseBackEnd)
     SlidingEquilibrium eq;
     ASSERT_EQ(eqs.Solve(model, eq), 0);
     ASSERT_EQ(PetscOptionsSetValue(nullptr, "-gen_fixed_size", "false"), 0);
-    // The fixed-size kernels start from the previous reactions; so do the others here
-    // (-theta_contact_predict 0), as the passes are compared.
-    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-gen_contact_predict", "0"), 0);
-    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_contact_predict", "0"), 0);
+    // The fixed-size kernels start from the previous reactions and run plain passes; so do the
+    // others here (-theta_contact_predict 0, -theta_fp_anderson 0), as the passes are compared.
+    for (const char *o : {"-gen_contact_predict", "-theta_contact_predict", "-gen_fp_anderson", "-theta_fp_anderson"})
+      ASSERT_EQ(PetscOptionsSetValue(nullptr, o, "0"), 0);
     struct Integration {
       ThetaIntegrator ti{PETSC_COMM_WORLD};
       Vec             U = nullptr, dU = nullptr;
@@ -354,8 +354,8 @@ TEST(Theta, FixedSizeKernelMatchesRunTimeSizesAndSparseBackEnd)
     ASSERT_FALSE(run[1].ti.FixedSizeKernel());
     ASSERT_FALSE(run[2].ti.Dense());
     ASSERT_EQ(PetscOptionsClearValue(nullptr, "-gen_fixed_size"), 0);
-    ASSERT_EQ(PetscOptionsClearValue(nullptr, "-gen_contact_predict"), 0);
-    ASSERT_EQ(PetscOptionsClearValue(nullptr, "-theta_contact_predict"), 0);
+    for (const char *o : {"-gen_contact_predict", "-theta_contact_predict", "-gen_fp_anderson", "-theta_fp_anderson"})
+      ASSERT_EQ(PetscOptionsClearValue(nullptr, o), 0);
     std::vector<int> status;
     int              seen[3] = {0, 0, 0};
     double           max_gen = 0, max_sparse = 0;

@@ -7,6 +7,9 @@
 // (rectilinear: r_t clamped to [-mu r_n, mu r_n], r_b = 0), by block Gauss-Seidel passes over the
 // points (v updated after each point; with one point this is the reference's Jacobi pass).
 // Stop when sum_c ||r_c^(k+1) - r_c^(k)||_1 <= tol (R_ref + sum_c r_n,c).
+// On run-time sizes the passes may be Anderson-mixed (SetFixedPointAnderson): each pass starts
+// from the combination of the last passes' outputs whose changes combine to the least norm, which
+// halves the passes where Gauss-Seidel is slow (a strongly coupled W, as a reduced FE model's).
 // The problem is small and dense, so it is replicated on every rank: no communication, and every
 // rank takes identical decisions. With many contacts W may be given sparse (Setup overload): the
 // same passes in the same order, each costing O(nnz(W)). All storage is sized in Setup; Solve allocates nothing.
@@ -66,6 +69,7 @@ struct FixedPointParams {
   PetscReal h = 0, mu = 0, tol = 1e-12, r_ref = 1.0;
   PetscInt  max_it      = 500;
   bool      rectilinear = false;
+  bool      v_current   = false; // v already holds w_f + h W r (run-time sizes then skip that product)
 };
 
 // v += hW(:, o + kT) dt + hW(:, o + kB) db + hW(:, o + kN) dn on a sparse (column-major) W, where a
@@ -109,7 +113,7 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPassesLaw(const FixedPointParams &p, c
   constexpr bool     kFixed = MatW::SizeAtCompileTime != Eigen::Dynamic;
   const Eigen::Index nc     = rho_n.size();
   PetscReal          residual = 0; // a local, not info's member: stays in a register across the passes
-  v.noalias() = w_f + hW * r;
+  if (kFixed || !p.v_current) v.noalias() = w_f + hW * r; // the fixed-size kernels never mix passes
   for (PetscInt it = 1; it <= p.max_it; ++it) {
     PetscReal change = 0, rn_sum = 0;
     for (Eigen::Index c = 0; c < nc; ++c) {
@@ -185,6 +189,14 @@ public:
   // events, so the extrapolation starts O(h) closer: measured 21 % fewer fixed-point passes on a
   // 175-point pad, 24 % on a 451-point one (docs/records.md). History sized in Setup.
   void     SetPredictor(PetscInt order) { predict_ = std::max<PetscInt>(0, std::min<PetscInt>(order, 2)), n_hist_ = 0; }
+  // Anderson mixing of the fixed point's passes over the last `depth` (0: plain passes; at most 8),
+  // on the run-time-sized and sparse paths (also the Newton's fallback); after Setup. A pass is
+  // r -> G(r) (one Gauss-Seidel sweep); the next pass starts from the combination of the last
+  // G(r) whose changes G(r) - r combine to the least norm, and v follows by linearity (no product
+  // with W). The history restarts when a pass changes r more than the one before. The result is
+  // always a pass's own output, so it passes the same stopping test as the plain passes.
+  void     SetFixedPointAnderson(PetscInt depth);
+  PetscInt FixedPointAnderson() const { return fp_anderson_; }
   PetscInt Predictor() const { return predict_; }
   // Counters since Setup: Newton solves, of which fell back to the fixed point, and Newton steps.
   PetscInt NewtonSolves() const { return newton_solves_; }
@@ -192,6 +204,7 @@ public:
   PetscInt NewtonSteps() const { return newton_steps_; }
   PetscInt Factorisations() const { return factorisations_; }
   PetscInt MixedSteps() const { return mixed_; }
+  PetscInt MixedPasses() const { return mixed_passes_; } // fixed-point passes started from a mixed point
   // r holds the starting guess (the previous step's reaction) and returns the solution.
   LocalSolveInfo Solve(const Eigen::VectorXd &w_f, const Eigen::VectorXd &gap0, Eigen::VectorXd &r);
   // The same on NC points known at compile time (Eigen::Dynamic: any); NC must equal Setup's n_c.
@@ -210,7 +223,7 @@ public:
     if constexpr (M == Eigen::Dynamic) {
       if (solver_ == ContactSolver::kNewton) return SolveNewton(w_f, gap0, r); // predicts itself
       Predict(r);
-      const LocalSolveInfo info = ContactPasses(p_, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+      const LocalSolveInfo info = Passes(w_f, gap0, r); // with Anderson mixing when asked for
       Remember(r);
       return info;
     }
@@ -266,11 +279,15 @@ private:
   void      AssembleJacobian(); // J = I - G + G D h W from g_, gd_
   bool      Factor();           // assembles and factorises J at the current point; false if unusable
   bool      Direction();        // d_ = -J^-1 F_ with the factor held; false if not finite
-  // Anderson mixing of the chord map r -> g(r) = r - J0^-1 F(r) (J0 the factor held): appends
-  // (f = d_, g = r + d_, v(g) = v + hW d_) to the history, then writes to rt_, vt_ the combination
-  // of the history's g (and, v being linear in r, of their v) whose f combine to the least norm.
-  // False when the history holds fewer than two entries or the least-squares problem is singular.
-  bool      Mix(CRef r);
+  // Anderson mixing of a map r -> g(r) with f = g(r) - r: the chord map r - J0^-1 F(r) (J0 the
+  // factor held) or a fixed-point pass. Mix writes to rt_, vt_ the combination of the history's g
+  // (and, v being linear in r, of their v) whose f combine to the least norm. False when the
+  // history holds fewer than two entries or the least-squares problem is singular.
+  // Storage: AndersonSlot(depth) makes room for one more entry (dropping the oldest when depth + 1
+  // are held) and returns its column, which the caller fills (a_f_: f, a_g_: g, a_v_: v(g)).
+  Eigen::Index AndersonSlot(PetscInt depth);
+  bool         Mix();
+  void         SizeAnderson(); // the history for max(anderson_ (Newton), fp_anderson_) + 1 entries
 
   const ContactSet *cs_ = nullptr;
   unsigned long     friction_state_ = 0; // cs_->FrictionState() that speed_ holds
@@ -293,6 +310,8 @@ private:
   PetscInt        anderson_ = 0, a_n_ = 0;
   Eigen::MatrixXd a_f_, a_g_, a_v_, a_df_;
   PetscInt        mixed_ = 0; // chord steps replaced by the mixed point (counter since Setup)
+  PetscInt        fp_anderson_ = 0, mixed_passes_ = 0;
+  Eigen::VectorXd rin_; // the fixed point with mixing: the start of the current pass
   Eigen::Matrix<PetscReal, 3, Eigen::Dynamic> g_, gd_; // per point (3 x 3 blocks side by side): G_c, G_c D_c
   Eigen::MatrixXd                       J_;            // dense W
   Eigen::PartialPivLU<Eigen::MatrixXd>  lu_;

@@ -137,6 +137,7 @@ private:
   PetscInt     contact_solver_ = 0, ssn_max_it_ = 30; // -theta_contact_solver: 0 fp, 1 ssn, 2 auto
   PetscInt     contact_predict_ = 2;                 // -theta_contact_predict: order of the starting guess's extrapolation
   PetscInt     ssn_anderson_ = 5;                    // -theta_ssn_anderson: depth of the mixing of Newton's chord steps
+  PetscInt     fp_anderson_ = 5;                     // -theta_fp_anderson: depth of the mixing of the fixed point's passes
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
