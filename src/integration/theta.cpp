@@ -119,14 +119,12 @@ PetscErrorCode ThetaIntegrator::SetFixedPoint(PetscReal tol, PetscInt max_it)
   PetscFunctionReturn(0);
 }
 
-// -theta_contact_solver auto takes the semi-smooth Newton from this many contact points on. Measured
-// (transients of the reduced pads, 200 steps per period): 175 points (pad_cycle.yaml) 7.7 iterations
-// per step against 12.9 passes, the same wall time (3.42-3.63 s against 3.41-3.53 s); 451 points
-// (pad_large_cycle.yaml) 11.3 against 31.9, 21.4 s against 22.0 s (the LU of the 1353 x 1353 J,
-// kept ~14 steps, is a third of it). Below, the fixed point is as fast and needs no LU. Since the
-// extrapolated start (-theta_contact_predict) the fixed point is ahead on 451 points too (10.5 s
-// against 14.3 s, docs/records.md); the switch is left until a larger model measures it.
-static constexpr PetscInt kSsnAutoContacts = 450;
+// -theta_contact_solver auto: the fixed point, which with its passes mixed (-theta_fp_anderson) was
+// the faster on every model measured, side by side (transients, 200 steps per period,
+// docs/records.md): 451 points (pad_large_cycle.yaml, 800 steps) 10.5-10.8 s against 24.8 s for
+// ssn; 651 points (the size-2 brake reduced to 1594 DOFs, 400 steps) 23.9 s against 41.1 s. ssn
+// took one LU of the 3 n_c square J every few steps, and its chord steps cost two products with
+// h W each, against one for a pass. Before the mixing, auto took ssn from 450 points on.
 
 PetscErrorCode ThetaIntegrator::SetContactSolver(const char *name, PetscInt ssn_max_it, PetscInt ssn_anderson)
 {
@@ -221,7 +219,7 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                     Range::Positive(), checks);
   PetscCall(PetscOptionsEList("-contact_solver",
                               "Local contact problem (S6-7): fp (projected Gauss-Seidel fixed point), ssn (semi-smooth Newton on the same "
-                              "equations, dense or sparse LU per iteration, the fixed point as fallback), auto (ssn from 450 contact points on)",
+                              "equations, dense or sparse LU per iteration, the fixed point as fallback), auto (fp: the faster on every model measured)",
                               "ThetaIntegrator::SetContactSolver", csolvers, 3, csolvers[contact_solver_], &contact_solver_, nullptr));
   PetscCall(PetscOptionsInt("-ssn_max_it", "Semi-smooth Newton iteration limit per step (then the fixed point; counted and reported)",
                             "ThetaIntegrator::SetContactSolver", ssn_max_it_, &ssn_max_it_, nullptr));
@@ -370,7 +368,7 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   if (sparse_w_) local_.Setup(model.contacts, Ws_, h, rho_scale_);
   else local_.Setup(model.contacts, W_, h, rho_scale_);
   local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
-  const bool ssn = contact_solver_ == 1 || (contact_solver_ == 2 && nc_ >= kSsnAutoContacts);
+  const bool ssn = contact_solver_ == 1;
   if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_, ssn_anderson_);
   local_.SetPredictor(contact_predict_);
   local_.SetFixedPointAnderson(fp_anderson_);
