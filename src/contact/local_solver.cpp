@@ -138,7 +138,7 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
   auto run = [&](const FixedPointParams &p) {
     return sparse_ ? ContactPasses(p, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_) : ContactPasses(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
   };
-  if (fp_anderson_ == 0) return run(p_);
+  if (fp_anderson_ == 0 || p_.max_it < 1) return run(p_);
   // One pass at a time, each from the mixed point of the last ones (SetFixedPointAnderson).
   FixedPointParams p1 = p_;
   p1.max_it           = 1;
@@ -153,6 +153,7 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
     // A pass that changed r more than the last one: the history no longer describes the map.
     if (info.residual > last) a_n_ = 0;
     last                 = info.residual;
+    if (it == p_.max_it) break; // a capped solve returns the last pass's output, not a mixed point
     const Eigen::Index j = AndersonSlot(fp_anderson_);
     a_f_.col(j)          = r - rin_;
     a_g_.col(j)          = r;

@@ -99,7 +99,7 @@ PetscErrorCode CheckUnusedOptions(MPI_Comm comm, bool skip_views)
 PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
 {
   static const char *const ours[]    = {"model_", "contact_", "reduce_", "stab_", "eq_", "sweep_",
-                                        "theta_", "transient_", "energy_", "shoot_", "floquet_", "cont_", "steady_"};
+                                        "theta_", "transient_", "energy_", "shoot_", "floquet_", "cont_", "steady_", "torus_"};
   // PETSc objects under our prefixes (-shoot_snes_monitor, -stab_pep_view): read when the object is
   // made, so judged only at the end of the run. Our own monitors and viewers (-floquet_monitor,
   // -stab_view) are read with the other options, so a name like -shoot_monitor, which no object

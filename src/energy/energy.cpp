@@ -68,7 +68,7 @@ void EnergyAnalysis::Powers(PetscReal q, PetscReal *P_R, PetscReal *P_I, std::ve
     const auto ut = tr * S + ti * C;
     const auto st = V - ut; // surface velocity relative to the structure
     PetscReal  acc;
-    if (rectilinear) acc = (rn.max(0) * ut * st / st.abs().max(tiny)).sum(); // rn sign(st) ut
+    if (rectilinear) acc = (rn.max(0) * st.sign() * ut).sum();
     else {
       const auto ub = br * S + bi * C;
       acc           = (rn.max(0) * (st * ut - ub * ub) / (st * st + ub * ub).max(tiny).sqrt()).sum();

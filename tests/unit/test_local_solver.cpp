@@ -385,6 +385,24 @@ TEST(LocalSolver, MixedPassesWhereGaussSeidelIsSlow)
         }
       }
     }
+    // Capped at 3 passes (not converged): the last pass's output, so inside the friction set.
+    {
+      std::vector<State> states(nc, kSlipS);
+      const Problem      pb = Construct(cs, W, h, states, gen);
+      LocalContactSolver ls;
+      ls.Setup(cs, W, h, 1.0);
+      ls.SetTolerances(1e-14, 3, 1.0);
+      ls.SetFixedPointAnderson(5);
+      Eigen::VectorXd      r    = Eigen::VectorXd::Zero(m);
+      const LocalSolveInfo info = ls.Solve(pb.w_f, pb.gap0, r);
+      EXPECT_FALSE(info.converged);
+      EXPECT_EQ(info.iterations, 3);
+      for (PetscInt c = 0; c < nc; ++c) {
+        const PetscReal rn = r[3 * c + kN], rt = r[3 * c + kT], rb = r[3 * c + kB];
+        EXPECT_GE(rn, 0.0) << "point " << c;
+        EXPECT_LE(std::hypot(rt, rb), cs.Mu() * rn * (1 + 1e-12)) << "point " << c;
+      }
+    }
     PetscPrintf(PETSC_COMM_WORLD, "%s, 6 problems on a strongly coupled W: fixed-point passes %ld plain, %ld mixed (dense), %ld (sparse)\n",
                 FrictionLawName(law), passes[0], passes[1], passes[2]);
     EXPECT_LT(passes[1], 0.75 * passes[0]);

@@ -194,7 +194,9 @@ public:
   // r -> G(r) (one Gauss-Seidel sweep); the next pass starts from the combination of the last
   // G(r) whose changes G(r) - r combine to the least norm, and v follows by linearity (no product
   // with W). The history restarts when a pass changes r more than the one before. The result is
-  // always a pass's own output, so it passes the same stopping test as the plain passes.
+  // always a pass's own output, so it passes the same stopping test as the plain passes (and a
+  // solve capped by max_it returns the last pass's output, inside the friction set). Setup resets
+  // the depth to 0: call this after it.
   void     SetFixedPointAnderson(PetscInt depth);
   PetscInt FixedPointAnderson() const { return fp_anderson_; }
   PetscInt Predictor() const { return predict_; }

@@ -68,7 +68,7 @@ public:
   // or "auto" (redundant); one rank always factorises A.
   PetscErrorCode SetParallelSolver(const char *name, PetscReal cg_rtol);
   // Local contact solver (S6-7): "fp" (fixed point), "ssn" (semi-smooth Newton, fixed point as
-  // fallback, LocalContactSolver), "auto" (ssn from n_c >= 450 on: the measured break-even, theta.cpp); Newton's iteration limit.
+  // fallback, LocalContactSolver), "auto" (fp: with mixed passes the faster on every model measured, theta.cpp); Newton's iteration limit.
   PetscErrorCode SetContactSolver(const char *name, PetscInt ssn_max_it, PetscInt ssn_anderson = 5);
   // -theta_delassus_max, -theta_delassus_drop, -theta_parallel_solver, -theta_cg_rtol, -theta_ksp_*,
   // -theta_contact_solver, -theta_ssn_max_it.
