@@ -48,7 +48,7 @@ public:
   PetscErrorCode Work(const Eigen::VectorXd &r) override
   {
     const PetscScalar *dq;
-    PetscReal          w;
+    PetscReal          w = 0; // LocalDot sets it; the compiler cannot see that through PetscCall
     PetscFunctionBeginUser;
     PetscCall(VecWAXPY(dq_, -1.0, U0_, U_)); // h ub
     PetscCall(VecCopy(U_, U0_));

@@ -134,6 +134,8 @@ private:
   PetscReal     fmax_   = 0;
   PetscInt      nmodes_ = -1;
   PetscReal     fband_  = 0;
+  PetscReal     fmax_factor_ = 6; // -reduce_fmax_factor: the default cut-off in units of the band
+  std::string   fmax_note_;       // how the default cut-off was chosen, said by Reduce
   PetscInt      max_modes_ = 1000;
   PetscBool     rayleigh_  = PETSC_TRUE;
   PetscBool     sparse_rhs_ = PETSC_TRUE;

@@ -86,6 +86,10 @@ struct StabilityResult {
   PetscReal MaxOscillatorySigma(PetscInt *which = nullptr) const;
 };
 
+// Top of the band (Hz) when -stab_fmax is not given: the audible band. The reduction's default
+// cut-off is a multiple of it (CraigBampton::SetFromOptions).
+inline constexpr PetscReal kDefaultBandHz = 20000;
+
 class StabilitySolver {
 public:
   explicit StabilitySolver(MPI_Comm comm) : comm_(comm) {}
@@ -112,7 +116,7 @@ private:
   MPI_Comm    comm_;
   std::string prefix_ = "stab_";
   bool        modes_  = true;
-  PetscReal   fmax_ = 20000, fmin_ = 0;
+  PetscReal   fmax_ = kDefaultBandHz, fmin_ = 0;
   PetscInt    nev_max_ = 1000;
   PEPH        pep_;
 };
