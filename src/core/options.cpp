@@ -106,11 +106,12 @@ PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
   // reads, is refused here: a long run used to show only an end-of-run warning for it, and an
   // interrupted one nothing.
   // The object's name comes right after our prefix (-shoot_ksp_type, -stab_pep_st_ksp_type), or
-  // after the one sub-prefix squeal gives an object (-shoot_mass_ksp_type). Anywhere else it is a
-  // word of our own option's name: -shoot_linear_pc_max is ours, so its typos are judged here.
+  // after a sub-prefix squeal gives an object (-shoot_mass_ksp_type, -reduce_slice_eps_ncv).
+  // Anywhere else it is a word of our own option's name: -shoot_linear_pc_max is ours, so its
+  // typos are judged here.
   static const char *const objects[] = {"ksp_", "pc_", "snes_", "linesearch_", "eps_", "pep_", "st_", "bv_", "ds_",
                                         "rg_", "fn_", "mat_", "svd_", "vec_", "is_", "sf_", "dm_", "viewer_", "draw_"};
-  static const char *const subprefixes[] = {"", "mass_"};
+  static const char *const subprefixes[] = {"", "mass_", "slice_"};
   std::string unknown;
   int         count = 0;
   PetscFunctionBeginUser;

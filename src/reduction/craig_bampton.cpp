@@ -264,7 +264,7 @@ PetscErrorCode CreateBasis(MPI_Comm comm, const cb::Partition &p, const cb::Inte
   for (PetscInt k = 0; k < b.m; ++k) {
     Vec       col;
     PetscReal nrm2;
-    PetscCall(EPSGetEigenvector(in.eps, keep[k], x, nullptr));
+    PetscCall(EPSGetEigenvector(in.slice ? in.slice : in.eps, keep[k], x, nullptr));
     PetscCall(MatMult(in.Mii, x, y));
     PetscCall(VecDot(x, y, &nrm2));
     // Sign fixed by the entry of largest modulus, so that any rank count gives the same basis.
@@ -490,6 +490,15 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             "Constraint modes solved in blocks of this many right-hand sides, a signal obeyed between blocks "
                             "(0: all in one solve)",
                             "CraigBampton", rhs_block_, &rhs_block_, nullptr));
+  {
+    PetscBool slice = PETSC_FALSE, set = PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-slice",
+                               "Fixed-interface modes by spectrum slicing of [0, (2 pi fmax)^2] (SLEPc Krylov-Schur, one part of the "
+                               "interval per rank, its options under -reduce_slice_); default: where its factorisations cost less "
+                               "than orthogonalising against every mode at one shift",
+                               "CraigBampton", slice, &slice, &set));
+    if (set) slice_ = (PetscInt)slice;
+  }
   PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
@@ -608,6 +617,12 @@ PetscErrorCode CraigBampton::FactorInterior(const Model &full, const cb::Partiti
   in.nev = PetscMax(1, PetscMin(in.nev, PetscMin(max_modes_, p.nI)));
   PetscCall(EPSSetDimensions(in.eps, in.nev, PETSC_DEFAULT, PETSC_DEFAULT));
   PetscCall(EPSSetFromOptions(in.eps));
+  {
+    PetscInt nev, ncv, mpd;
+    PetscCall(EPSGetDimensions(in.eps, &nev, &ncv, &mpd));
+    if (ncv > 0) in.ncv = ncv;
+    if (mpd > 0) in.mpd = mpd;
+  }
   PetscCall(EPSMonitorSet(
     in.eps,
     [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
@@ -653,6 +668,73 @@ PetscErrorCode CraigBampton::FactorInterior(const Model &full, const cb::Partiti
   PetscFunctionReturn(0);
 }
 
+// Parts of the sliced interval: one per rank, each with 50 modes at least.
+static PetscInt SliceParts(MPI_Comm comm, PetscInt count)
+{
+  PetscMPIInt size = 1;
+  MPI_Comm_size(comm, &size);
+  return PetscMax(1, PetscMin((PetscInt)size, count / 50));
+}
+
+// The count modes of (K_II, M_II) in [0, w2max] by spectrum slicing. One Krylov-Schur run at a
+// single shift with hundreds of modes spends its time orthogonalising against them (802 modes of the
+// size-1 brake: 31 of 47 s); slicing moves the shift along the interval (a factorisation each) and
+// splits the interval over the ranks, each part on one rank with its own whole copy of the matrices.
+PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, PetscInt count, std::vector<PetscReal> &lam)
+{
+  ST          st;
+  KSP         ksp;
+  PC          pc;
+  PetscInt    nconv = 0;
+  PetscFunctionBeginUser;
+  PetscCall(EPSCreate(comm, in.slice.out()));
+  PetscCall(EPSSetOptionsPrefix(in.slice, (prefix_ + "slice_").c_str()));
+  PetscCall(EPSSetOperators(in.slice, in.Kii, in.Mii));
+  PetscCall(EPSSetProblemType(in.slice, EPS_GHEP));
+  PetscCall(EPSSetType(in.slice, EPSKRYLOVSCHUR));
+  // From 0: K_II is positive definite (held by the contact DOFs and supports, checked by its
+  // factorisation), so no mode is lost below the interval.
+  PetscCall(EPSSetInterval(in.slice, 0.0, w2max));
+  PetscCall(EPSSetWhichEigenpairs(in.slice, EPS_ALL));
+  PetscCall(EPSSetTolerances(in.slice, 1e-10, PETSC_DEFAULT));
+  // One rank per part: each part's factorisations are sequential MUMPS ones, whose inertia is exact.
+  PetscCall(EPSKrylovSchurSetPartitions(in.slice, SliceParts(comm, count)));
+  PetscCall(EPSGetST(in.slice, &st));
+  PetscCall(STSetType(st, STSINVERT));
+  PetscCall(STGetKSP(st, &ksp));
+  PetscCall(KSPSetType(ksp, KSPPREONLY));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCCHOLESKY));
+  PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  // The parts' eigensolvers are made inside EPSSetUp and read their KSP from the options (SLEPc
+  // 3.18 does not copy the solver type set above): the same choice, as defaults the user can override.
+  const std::pair<const char *, const char *> defaults[] = {{"slice_st_pc_type", "cholesky"},
+                                                           {"slice_st_pc_factor_mat_solver_type", "mumps"}};
+  for (const auto &d : defaults) {
+    const std::string name = OptionName(prefix_.c_str(), d.first);
+    PetscBool         has  = PETSC_FALSE;
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, name.c_str(), &has));
+    if (!has) PetscCall(PetscOptionsSetValue(nullptr, name.c_str(), d.second));
+  }
+  PetscCall(EPSSetFromOptions(in.slice));
+  PetscCall(EPSMonitorSet(
+    in.slice,
+    [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
+      return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
+    },
+    nullptr, nullptr));
+  PetscCall(EPSSolve(in.slice));
+  PetscCall(EPSKrylovSchurGetPartitions(in.slice, &info_.slice_parts));
+  PetscCall(EPSGetConverged(in.slice, &nconv));
+  lam.resize(nconv);
+  for (PetscInt i = 0; i < nconv; ++i) {
+    PetscScalar kr, ki;
+    PetscCall(EPSGetEigenvalue(in.slice, i, &kr, &ki));
+    lam[i] = PetscRealPart(kr);
+  }
+  PetscFunctionReturn(0);
+}
+
 // Fixed-interface modes of (K_II, M_II) up to the cut-off: lam holds every converged eigenvalue,
 // keep the ones kept (ascending).
 PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in,
@@ -666,7 +748,9 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
   // With a cut-off alone, the count of modes below it is the number of negative pivots of
   // K_II - (2 pi fmax)^2 M_II (Sylvester's inertia; one more factorisation): one solve then asks
   // for exactly those, instead of solving again and again with a growing request.
-  bool counted = false;
+  bool           counted      = false;
+  PetscInt       nneg_counted = -1;
+  PetscLogDouble t_count      = 0; // s, the counting factorisation: the price of a slicing shift
   if (fmax_ > 0 && nmodes_ < 0 && count_modes_) {
     MatH     A, F;
     PetscInt nneg = 0;
@@ -677,23 +761,52 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
     PetscCall(MatFactorInfoInitialize(&finfo));
     PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, F.out()));
     PetscCall(MatMumpsSetIcntl(F, 13, 1)); // the root node factorised without ScaLAPACK, so its pivots count
+    PetscCall(PetscTime(&t_count));
     PetscCall(MatCholeskyFactorSymbolic(F, A, nullptr, &finfo));
     PetscCall(MatCholeskyFactorNumeric(F, A, &finfo));
+    {
+      PetscLogDouble t1;
+      PetscCall(PetscTime(&t1));
+      t_count = t1 - t_count;
+    }
     MatFactorError ferr;
     PetscCall(MatFactorGetError(F, &ferr));
     if (ferr == MAT_FACTOR_NOERROR) {
       PetscCall(MatGetInertia(F, &nneg, nullptr, nullptr));
-      counted = true;
+      counted = true, nneg_counted = nneg;
       if (nneg > PetscMin(max_modes_, nI))
         PetscCall(PetscPrintf(comm,
                               "reduction: warning: %" PetscInt_FMT " fixed-interface modes lie below %g Hz, more than -%smax_modes = %" PetscInt_FMT
                               "; only the lowest %" PetscInt_FMT " are kept: raise -%smax_modes or lower -%sfmax\n",
                               nneg, (double)fmax_, prefix_.c_str(), max_modes_, PetscMin(max_modes_, nI), prefix_.c_str(), prefix_.c_str()));
       nev = PetscMin(nneg, PetscMin(max_modes_, nI));
-      if (nev > 0) PetscCall(EPSSetDimensions(in.eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+      if (nev > 0) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv, in.mpd));
     } // else (a mode at the cut-off itself): the growing requests below
   }
-  if (nmodes_ != 0 && !(counted && nev == 0)) {
+  // Many modes: spectrum slicing of [0, w2max] (its own eigensolver and factorisations, so the
+  // factor of K_II above stays for the constraint modes), one part of the interval per rank.
+  bool slice = counted && nev > 0 && nev == nneg_counted && slice_ != 0;
+  if (slice && slice_ < 0) {
+    // Time model, from the 17820-DOF brake (802 modes, 1 rank; K_II factor 0.2 s, a solve 7 ms):
+    // at one shift ~3.5 solves per mode and ~4 n_I k^2 flops of orthogonalisation at ~1.4 GFlop/s
+    // (31 of 47 s), none of it shared by the ranks (each solves the whole system); slicing ~3.2
+    // solves per mode and k/40 + 2 more factorisations, split over its parts. A solve ~0.04 of a
+    // factorisation, timed on the counting one. Few modes of a large model stay at one shift.
+    const double parts     = (double)SliceParts(comm, nev);
+    const double t_solve   = 0.04 * t_count;
+    const double one_shift = 4.0 * (double)nI * (double)nev * (double)nev / 1.4e9 + 3.5 * nev * t_solve;
+    const double slicing   = (3.2 * nev * t_solve + ((double)nev / 40.0 + 2.0) * t_count) / parts;
+    slice                  = one_shift > slicing;
+  }
+  if (slice) {
+    PetscCall(SliceModes(comm, in, w2max, nev, lam));
+    nconv = (PetscInt)lam.size();
+    PetscCheck(nconv == nev, comm, PETSC_ERR_NOT_CONVERGED,
+               "reduction: spectrum slicing found %" PetscInt_FMT " fixed-interface modes below %g Hz where the inertia counts %" PetscInt_FMT
+               " (-%sslice 0 solves them at one shift)",
+               nconv, (double)fmax_, nev, prefix_.c_str());
+  }
+  if (nmodes_ != 0 && !(counted && nev == 0) && !slice) {
     for (;;) {
       PetscCall(EPSSolve(in.eps));
       PetscCall(EPSGetConverged(in.eps, &nconv));
@@ -713,7 +826,7 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       PetscInt next = 2 * nev;
       if (nconv > 0 && lmax > 0) next = PetscMax(next, (PetscInt)std::ceil(1.25 * nconv * (w2max / lmax)));
       nev = PetscMin(next, PetscMin(max_modes_, nI));
-      PetscCall(EPSSetDimensions(in.eps, nev, PETSC_DEFAULT, PETSC_DEFAULT));
+      PetscCall(EPSSetDimensions(in.eps, nev, in.ncv, in.mpd));
     }
   }
   in.nev = nev;
@@ -879,7 +992,9 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
   if (info_.n_modes > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, ", %.1f to %.1f Hz", (double)info_.freq.front(), (double)info_.freq.back()));
   PetscCall(PetscViewerASCIIPrintf(viewer, ")\n"));
-  char statics[96] = "";
+  char statics[96] = "", sliced[64] = "";
+  if (info_.slice_parts > 0)
+    PetscCall(PetscSNPrintf(sliced, sizeof sliced, " by spectrum slicing in %" PetscInt_FMT " part(s)", info_.slice_parts));
   if (info_.n_interface_statics > 0)
     PetscCall(PetscSNPrintf(statics, sizeof statics, " (%" PetscInt_FMT " of them the statics of the contact normals)", info_.n_interface_statics));
   if (info_.n_inplane_modes > 0)
@@ -889,9 +1004,9 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
                                      info_.n_interface, info_.n_normal, info_.n_inplane_modes, statics, (double)info_.inplane_freq.front(),
                                      (double)info_.inplane_freq.back(), info_.n_normal + info_.n_inplane_modes + info_.n_modes));
   PetscCall(PetscViewerASCIIPrintf(viewer,
-                                   "  time %.3f s (factorisation of K_II %.3f s, fixed-interface modes %.3f s, constraint modes %.3f s, "
+                                   "  time %.3f s (factorisation of K_II %.3f s, fixed-interface modes %.3f s%s, constraint modes %.3f s, "
                                    "projection %.3f s%s), resident memory %.1f MB\n",
-                                   (double)info_.time_total, (double)info_.time_factor, (double)info_.time_modes,
+                                   (double)info_.time_total, (double)info_.time_factor, (double)info_.time_modes, sliced,
                                    (double)info_.time_static, (double)info_.time_project,
                                    info_.rayleigh ? ", C = a M + b K projected as a M_r + b K_r" : "",
                                    (double)(info_.mem_peak / 1048576.0)));

@@ -30,9 +30,11 @@ struct Partition {
 struct Interior {
   MatH     Kii, Kib, Mii;
   EPSH     eps;
+  EPSH     slice; // the modes by spectrum slicing, when many (CraigBampton::SliceModes); else eps holds them
   Mat      Fct       = nullptr; // owned by the ST's PC
   bool     redundant = false;   // a sequential factor of the whole K_II on every rank
   PetscInt nev       = 0;       // modes asked of the eigensolver
+  PetscInt ncv = PETSC_DEFAULT, mpd = PETSC_DEFAULT; // -<prefix>eps_ncv / _mpd as given (SetDimensions keeps them)
 };
 
 // W = [Psi Phi] (interior rows, N_I x (nB + m)) and the sizes and orders of the reduced model.

@@ -197,6 +197,41 @@ TEST(Reduction, DistributedReductionMatchesTheSerialOne)
   EXPECT_NEAR(f, f1, 1e-12 * f1);
 }
 
+// Spectrum slicing (one part of [0, (2 pi fmax)^2] per rank, each with its own factorisations)
+// against Krylov-Schur at the one shift 0 that shares the constraint modes' factor: the same
+// fixed-interface frequencies and the same reduced eigenvalues. Under mpiexec -n 2, two parts.
+TEST(Reduction, SpectrumSlicingGivesTheModesOfOneShift)
+{
+  PadParams p = SmallPad();
+  Model     full(PETSC_COMM_WORLD);
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  Model         red[2] = {Model(PETSC_COMM_WORLD), Model(PETSC_COMM_WORLD)};
+  ReductionInfo info[2];
+  for (int s = 0; s < 2; ++s) {
+    CraigBampton cb(PETSC_COMM_WORLD);
+    ASSERT_EQ(cb.SetFMax(150000), 0);
+    ASSERT_EQ(cb.SetSlice(s), 0);
+    ASSERT_EQ(cb.Reduce(full, red[s]), 0);
+    info[s] = cb.Info();
+  }
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  EXPECT_EQ(info[0].slice_parts, 0);
+  ASSERT_GE(info[1].n_modes, 100); // enough for a part per rank (50 modes each at least)
+  EXPECT_EQ(info[1].slice_parts, size);
+  ASSERT_EQ(info[0].freq.size(), info[1].freq.size());
+  for (size_t k = 0; k < info[0].freq.size(); ++k) EXPECT_NEAR(info[1].freq[k], info[0].freq[k], 1e-9 * info[0].freq[k]) << "mode " << k;
+  StabilityResult a, b;
+  ASSERT_TRUE(test::SolveStability(red[0], a, 12));
+  ASSERT_TRUE(test::SolveStability(red[1], b, 12));
+  ASSERT_EQ(a.modes.size(), b.modes.size());
+  for (size_t k = 0; k < a.modes.size(); ++k) {
+    const double mag = std::hypot(a.modes[k].sigma, a.modes[k].omega);
+    EXPECT_NEAR(b.modes[k].sigma, a.modes[k].sigma, 1e-8 * mag) << "eigenvalue " << k;
+    EXPECT_NEAR(b.modes[k].omega, a.modes[k].omega, 1e-8 * mag) << "eigenvalue " << k;
+  }
+}
+
 TEST(Reduction, RedundantAndDistributedFactorsGiveTheSameReducedModel)
 {
   // Under mpiexec -n 2 the default solves the constraint modes column share by column share on

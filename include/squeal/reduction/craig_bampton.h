@@ -74,6 +74,7 @@ struct ReductionInfo {
   // Interface reduction (0: none): one normal coordinate per point kept, the interface's characteristic constraint modes kept and their frequencies (Hz).
   PetscInt               n_normal = 0, n_inplane_modes = 0; // n_inplane_modes: every column of the interface basis
   PetscInt               n_interface_statics = 0;           // of them, added for the contact normals' statics
+  PetscInt               slice_parts = 0;                   // the fixed-interface modes by spectrum slicing in this many parts (0: one shift)
   std::vector<PetscReal> inplane_freq;
   PetscReal              time_expansion = 0; // s, building the kept expansion (0: none kept)
   size_t                 expansion_bytes = 0; // on rank 0
@@ -101,6 +102,9 @@ public:
   // poll between blocks (<= 0: all in one solve; -reduce_rhs_block). The factor is the same:
   // only the right-hand side is split, and the modes agree to round-off.
   PetscErrorCode SetRHSBlock(PetscInt block) { rhs_block_ = block; return 0; }
+  // The fixed-interface modes below the cut-off by spectrum slicing (1), at one shift (0), or where
+  // slicing is estimated cheaper (-1, the default; -reduce_slice). The same modes either way.
+  PetscErrorCode SetSlice(PetscInt slice) { slice_ = slice; return 0; }
   // Interface reduction: keep the k lowest characteristic constraint modes of the interface (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
   // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
@@ -128,6 +132,7 @@ private:
   PetscErrorCode FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in);
   PetscErrorCode FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in, std::vector<PetscReal> &lam,
                                      std::vector<PetscInt> &keep);
+  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, PetscInt count, std::vector<PetscReal> &lam);
 
   MPI_Comm      comm_;
   std::string   prefix_ = "reduce_";
@@ -135,6 +140,7 @@ private:
   PetscInt      nmodes_ = -1;
   PetscReal     fband_  = 0;
   PetscReal     fmax_factor_ = 6; // -reduce_fmax_factor: the default cut-off in units of the band
+  PetscInt      slice_       = -1;  // -reduce_slice: spectrum slicing of the fixed-interface modes (-1: where it is estimated cheaper)
   std::string   fmax_note_;       // how the default cut-off was chosen, said by Reduce
   PetscInt      max_modes_ = 1000;
   PetscBool     rayleigh_  = PETSC_TRUE;
