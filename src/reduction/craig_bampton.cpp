@@ -761,6 +761,9 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
     PetscCall(MatFactorInfoInitialize(&finfo));
     PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, F.out()));
     PetscCall(MatMumpsSetIcntl(F, 13, 1)); // the root node factorised without ScaLAPACK, so its pivots count
+    // An indefinite matrix delays pivots beyond the analysis' estimate (MUMPS's default 20 % more
+    // workspace): room for them, or the count is lost and the modes take the slow road below.
+    PetscCall(MatMumpsSetIcntl(F, 14, 100));
     PetscCall(PetscTime(&t_count));
     PetscCall(MatCholeskyFactorSymbolic(F, A, nullptr, &finfo));
     PetscCall(MatCholeskyFactorNumeric(F, A, &finfo));
@@ -781,7 +784,15 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                               nneg, (double)fmax_, prefix_.c_str(), max_modes_, PetscMin(max_modes_, nI), prefix_.c_str(), prefix_.c_str()));
       nev = PetscMin(nneg, PetscMin(max_modes_, nI));
       if (nev > 0) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv, in.mpd));
-    } // else (a mode at the cut-off itself): the growing requests below
+    } else { // a mode at the cut-off itself, or out of memory: the growing requests below
+      PetscInt infog1 = 0, infog2 = 0;
+      PetscCall(MatMumpsGetInfog(F, 1, &infog1));
+      PetscCall(MatMumpsGetInfog(F, 2, &infog2));
+      PetscCall(PetscPrintf(comm,
+                            "reduction: note: the count of the modes below the cut-off failed (factorisation of K_II - (2 pi fmax)^2 "
+                            "M_II: MUMPS INFOG(1) = %" PetscInt_FMT ", INFOG(2) = %" PetscInt_FMT "); the modes by growing requests\n",
+                            infog1, infog2));
+    }
   }
   // Many modes: spectrum slicing of [0, w2max] (its own eigensolver and factorisations, so the
   // factor of K_II above stays for the constraint modes), one part of the interval per rank.
@@ -886,6 +897,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   info_.n_modes = (PetscInt)keep.size();
   for (PetscInt k : keep) info_.freq.push_back(std::sqrt(PetscMax(lam[k], 0.0)) / (2 * PETSC_PI));
   PetscCall(CreateBasis(comm, part, in, lam, keep, basis));
+  in.slice.reset(); // the slicing's copies of K_II, M_II and its factors, before the constraint modes
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t[2]));
   cpu[2] = CpuNow();
