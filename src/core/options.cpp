@@ -105,27 +105,23 @@ PetscErrorCode CheckUnknownSquealOptions(MPI_Comm comm)
   // -stab_view) are read with the other options, so a name like -shoot_monitor, which no object
   // reads, is refused here: a long run used to show only an end-of-run warning for it, and an
   // interrupted one nothing.
-  // The object's name comes right after our prefix (-shoot_ksp_type, -stab_pep_st_ksp_type), or
-  // after a sub-prefix squeal gives an object (-shoot_mass_ksp_type, -reduce_slice_eps_ncv).
-  // Anywhere else it is a word of our own option's name: -shoot_linear_pc_max is ours, so its
+  // An object's options may sit under PETSc's own inner prefixes too (-theta_sub_pc_type,
+  // -eq_redundant_pc_type, -shoot_mass_ksp_type), so an object word anywhere exempts the name,
+  // except in squeal's own options that contain one (-shoot_linear_pc_max, -cont_ds_min): their
   // typos are judged here.
-  static const char *const objects[] = {"ksp_", "pc_", "snes_", "linesearch_", "eps_", "pep_", "st_", "bv_", "ds_",
-                                        "rg_", "fn_", "mat_", "svd_", "vec_", "is_", "sf_", "dm_", "viewer_", "draw_"};
-  static const char *const subprefixes[] = {"", "mass_", "slice_"};
+  static const char *const objects[] = {"_ksp_", "_pc_", "_snes_", "_linesearch_", "_eps_", "_pep_", "_st_", "_bv_", "_ds_",
+                                        "_rg_", "_fn_", "_mat_", "_svd_", "_vec_", "_is_", "_sf_", "_dm_", "_viewer_", "_draw_"};
+  static const char *const own[]     = {"shoot_linear_pc_", "cont_ds_"};
   std::string unknown;
   int         count = 0;
   PetscFunctionBeginUser;
   PetscCall(UnusedOptions(
     [](const char *name) {
-      const char *rest = nullptr;
-      for (const char *p : ours)
-        if (std::strncmp(name, p, std::strlen(p)) == 0) rest = name + std::strlen(p);
-      if (!rest) return false;
-      for (const char *sub : subprefixes)
-        if (std::strncmp(rest, sub, std::strlen(sub)) == 0)
-          for (const char *o : objects)
-            if (std::strncmp(rest + std::strlen(sub), o, std::strlen(o)) == 0) return false;
-      return true;
+      bool squeal = false, object = false, mine = false;
+      for (const char *p : ours) squeal = squeal || std::strncmp(name, p, std::strlen(p)) == 0;
+      for (const char *o : objects) object = object || std::strstr(name, o) != nullptr;
+      for (const char *p : own) mine = mine || std::strncmp(name, p, std::strlen(p)) == 0;
+      return squeal && (mine || !object);
     },
     unknown, count));
   PetscCheck(count == 0, comm, kErrInput, "unknown option%s %s%s (mistyped? see -help)", count > 1 ? "s" : "", unknown.c_str(),

@@ -481,7 +481,7 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
   SquealOptionsReal("-fmax_factor",
                     "Without -reduce_fmax and -reduce_nmodes: the cut-off is this many times the band's top (-reduce_fband, "
                     "else -stab_fmax)",
-                    "CraigBampton", &fmax_factor_, Range::Positive(), checks);
+                    "CraigBampton", &fmax_factor_, Range::Closed(1.0, kInf), checks);
   PetscCall(PetscOptionsInt("-max_modes", "Upper bound on the fixed-interface modes kept for -reduce_fmax", "CraigBampton", max_modes_,
                             &max_modes_, nullptr));
   PetscCall(PetscOptionsBool("-sparse_rhs", "Constraint modes from the sparse right-hand sides -K_IB (MUMPS ICNTL(20) = 1) instead of a dense block",
@@ -668,19 +668,19 @@ PetscErrorCode CraigBampton::FactorInterior(const Model &full, const cb::Partiti
   PetscFunctionReturn(0);
 }
 
-// Parts of the sliced interval: one per rank, each with 50 modes at least.
-static PetscInt SliceParts(MPI_Comm comm, PetscInt count)
+// Parts of the sliced interval: one per rank, so that each part's factorisations are sequential.
+static PetscInt SliceParts(MPI_Comm comm)
 {
   PetscMPIInt size = 1;
   MPI_Comm_size(comm, &size);
-  return PetscMax(1, PetscMin((PetscInt)size, count / 50));
+  return (PetscInt)size;
 }
 
-// The count modes of (K_II, M_II) in [0, w2max] by spectrum slicing. One Krylov-Schur run at a
+// The modes of (K_II, M_II) in [0, w2max] by spectrum slicing. One Krylov-Schur run at a
 // single shift with hundreds of modes spends its time orthogonalising against them (802 modes of the
 // size-1 brake: 31 of 47 s); slicing moves the shift along the interval (a factorisation each) and
 // splits the interval over the ranks, each part on one rank with its own whole copy of the matrices.
-PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, PetscInt count, std::vector<PetscReal> &lam)
+PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, std::vector<PetscReal> &lam)
 {
   ST          st;
   KSP         ksp;
@@ -698,7 +698,7 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
   PetscCall(EPSSetWhichEigenpairs(in.slice, EPS_ALL));
   PetscCall(EPSSetTolerances(in.slice, 1e-10, PETSC_DEFAULT));
   // One rank per part: each part's factorisations are sequential MUMPS ones, whose inertia is exact.
-  PetscCall(EPSKrylovSchurSetPartitions(in.slice, SliceParts(comm, count)));
+  PetscCall(EPSKrylovSchurSetPartitions(in.slice, SliceParts(comm)));
   PetscCall(EPSGetST(in.slice, &st));
   PetscCall(STSetType(st, STSINVERT));
   PetscCall(STGetKSP(st, &ksp));
@@ -708,8 +708,12 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
   PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
   // The parts' eigensolvers are made inside EPSSetUp and read their KSP from the options (SLEPc
   // 3.18 does not copy the solver type set above): the same choice, as defaults the user can override.
+  // A part on several ranks (-reduce_slice_eps_krylovschur_partitions) factorises with distributed
+  // MUMPS, whose inertia needs ICNTL(13) = 1; ICNTL(14) as for the count below.
   const std::pair<const char *, const char *> defaults[] = {{"slice_st_pc_type", "cholesky"},
-                                                           {"slice_st_pc_factor_mat_solver_type", "mumps"}};
+                                                           {"slice_st_pc_factor_mat_solver_type", "mumps"},
+                                                           {"slice_st_mat_mumps_icntl_13", "1"},
+                                                           {"slice_st_mat_mumps_icntl_14", "100"}};
   for (const auto &d : defaults) {
     const std::string name = OptionName(prefix_.c_str(), d.first);
     PetscBool         has  = PETSC_FALSE;
@@ -771,6 +775,8 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       PetscLogDouble t1;
       PetscCall(PetscTime(&t1));
       t_count = t1 - t_count;
+      // The slicing decision below is collective: every rank takes it from the same time.
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &t_count, 1, MPI_DOUBLE, MPI_MAX, comm));
     }
     MatFactorError ferr;
     PetscCall(MatFactorGetError(F, &ferr));
@@ -783,7 +789,7 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                               "; only the lowest %" PetscInt_FMT " are kept: raise -%smax_modes or lower -%sfmax\n",
                               nneg, (double)fmax_, prefix_.c_str(), max_modes_, PetscMin(max_modes_, nI), prefix_.c_str(), prefix_.c_str()));
       nev = PetscMin(nneg, PetscMin(max_modes_, nI));
-      if (nev > 0) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv, in.mpd));
+      if (nev > 0) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
     } else { // a mode at the cut-off itself, or out of memory: the growing requests below
       PetscInt infog1 = 0, infog2 = 0;
       PetscCall(MatMumpsGetInfog(F, 1, &infog1));
@@ -803,19 +809,27 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
     // (31 of 47 s), none of it shared by the ranks (each solves the whole system); slicing ~3.2
     // solves per mode and k/40 + 2 more factorisations, split over its parts. A solve ~0.04 of a
     // factorisation, timed on the counting one. Few modes of a large model stay at one shift.
-    const double parts     = (double)SliceParts(comm, nev);
+    const double parts     = (double)SliceParts(comm);
     const double t_solve   = 0.04 * t_count;
     const double one_shift = 4.0 * (double)nI * (double)nev * (double)nev / 1.4e9 + 3.5 * nev * t_solve;
     const double slicing   = (3.2 * nev * t_solve + ((double)nev / 40.0 + 2.0) * t_count) / parts;
-    slice                  = one_shift > slicing;
+    slice                  = one_shift > slicing && nev >= 50 * SliceParts(comm); // 50 modes a part at least
   }
   if (slice) {
-    PetscCall(SliceModes(comm, in, w2max, nev, lam));
+    PetscCall(SliceModes(comm, in, w2max, lam));
     nconv = (PetscInt)lam.size();
-    PetscCheck(nconv == nev, comm, PETSC_ERR_NOT_CONVERGED,
+    PetscCheck(nconv == nev || slice_ < 0, comm, PETSC_ERR_NOT_CONVERGED,
                "reduction: spectrum slicing found %" PetscInt_FMT " fixed-interface modes below %g Hz where the inertia counts %" PetscInt_FMT
                " (-%sslice 0 solves them at one shift)",
                nconv, (double)fmax_, nev, prefix_.c_str());
+    if (nconv != nev) { // chosen for speed only: the one shift's solve instead
+      PetscCall(PetscPrintf(comm,
+                            "reduction: note: spectrum slicing found %" PetscInt_FMT " fixed-interface modes where the inertia counts %" PetscInt_FMT
+                            "; solved again at one shift\n",
+                            nconv, nev));
+      in.slice.reset();
+      lam.clear(), nconv = 0, slice = false;
+    }
   }
   if (nmodes_ != 0 && !(counted && nev == 0) && !slice) {
     for (;;) {
@@ -837,7 +851,7 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       PetscInt next = 2 * nev;
       if (nconv > 0 && lmax > 0) next = PetscMax(next, (PetscInt)std::ceil(1.25 * nconv * (w2max / lmax)));
       nev = PetscMin(next, PetscMin(max_modes_, nI));
-      PetscCall(EPSSetDimensions(in.eps, nev, in.ncv, in.mpd));
+      PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
     }
   }
   in.nev = nev;

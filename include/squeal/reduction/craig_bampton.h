@@ -89,8 +89,8 @@ public:
     return 0;
   }
   // The setters of the options below (plain assignments, read at Reduce).
-  PetscErrorCode SetFMax(PetscReal fmax) { fmax_ = fmax; return 0; }          // Hz; <= 0: no frequency cut-off
-  PetscErrorCode SetNModes(PetscInt nmodes) { nmodes_ = nmodes; return 0; }   // < 0: no count limit
+  PetscErrorCode SetFMax(PetscReal fmax) { fmax_ = fmax, fmax_note_.clear(); return 0; }        // Hz; <= 0: no frequency cut-off
+  PetscErrorCode SetNModes(PetscInt nmodes) { nmodes_ = nmodes, fmax_note_.clear(); return 0; } // < 0: no count limit
   PetscErrorCode SetFBand(PetscReal fband) { fband_ = fband; return 0; }      // Hz; > 0: refuse fmax below it
   // true (default): a C found equal to a M + b K (to 1e-12) is reduced as a M_r + b K_r, saving one
   // dense product; false: C is always projected (-reduce_rayleigh).
@@ -132,7 +132,7 @@ private:
   PetscErrorCode FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in);
   PetscErrorCode FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in, std::vector<PetscReal> &lam,
                                      std::vector<PetscInt> &keep);
-  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, PetscInt count, std::vector<PetscReal> &lam);
+  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, std::vector<PetscReal> &lam);
 
   MPI_Comm      comm_;
   std::string   prefix_ = "reduce_";
