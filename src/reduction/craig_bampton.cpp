@@ -470,6 +470,14 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
   OptionChecks      checks;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm_, prefix_.c_str(), "Craig-Bampton model reduction", "CraigBampton");
+  // A switch whose default the code decides: out becomes 1 or 0 when the option is given, else stays.
+  auto tristate = [&](const char *name, const char *help, PetscInt &out) -> PetscErrorCode {
+    PetscBool v = PETSC_FALSE, set = PETSC_FALSE;
+    PetscFunctionBeginUser;
+    PetscCall(PetscOptionsBool(name, help, "CraigBampton", out > 0 ? PETSC_TRUE : PETSC_FALSE, &v, &set));
+    if (set) out = (PetscInt)v;
+    PetscFunctionReturn(0);
+  };
   PetscCall(PetscOptionsEList("-type", "Model reduction: none or craig_bampton (contact DOFs + fixed-interface modes)",
                               "CraigBampton", types, 2, types[type], &type, nullptr));
   SquealOptionsReal("-fmax", "Cut-off frequency of the fixed-interface modes (Hz); 0: use -reduce_nmodes only; default: -reduce_fmax_factor x the band", "CraigBampton",
@@ -490,15 +498,11 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             "Constraint modes solved in blocks of this many right-hand sides, a signal obeyed between blocks "
                             "(0: all in one solve)",
                             "CraigBampton", rhs_block_, &rhs_block_, nullptr));
-  {
-    PetscBool slice = PETSC_FALSE, set = PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-slice",
-                               "Fixed-interface modes by spectrum slicing of [0, (2 pi fmax)^2] (SLEPc Krylov-Schur, one part of the "
-                               "interval per rank, its options under -reduce_slice_); default: where its factorisations cost less "
-                               "than orthogonalising against every mode at one shift",
-                               "CraigBampton", slice, &slice, &set));
-    if (set) slice_ = (PetscInt)slice;
-  }
+  PetscCall(tristate("-slice",
+                     "Fixed-interface modes by spectrum slicing of [0, (2 pi fmax)^2] (SLEPc Krylov-Schur, one part of the "
+                     "interval per rank, its options under -reduce_slice_); default: where its factorisations cost less "
+                     "than orthogonalising against every mode at one shift",
+                     slice_));
   PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
@@ -509,29 +513,22 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                             "Interface reduction: keep this many characteristic constraint modes of the contact interface "
                             "(one normal coordinate per point stays physical; -1: no interface reduction, or all below -reduce_interface_fmax)",
                             "CraigBampton", iface_modes_, &iface_modes_, nullptr));
-  {
-    PetscBool expand = PETSC_FALSE, set = PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-expand",
-                               "Keep the expansion of reduced vectors to the full model (dense, N x n on rank 0) and write the "
-                               "unstable modes, the cycle and the transient's last records on the full mesh (/expanded); "
-                               "default: on for a model with a mesh (-model_type calculix)",
-                               "CraigBampton", expand, &expand, &set));
-    expand_opt_ = set ? (PetscInt)expand : -1;
-  }
+  expand_opt_ = -1;
+  PetscCall(tristate("-expand",
+                     "Keep the expansion of reduced vectors to the full model (dense, N x n on rank 0) and write the "
+                     "unstable modes, the cycle and the transient's last records on the full mesh (/expanded); "
+                     "default: on for a model with a mesh (-model_type calculix)",
+                     expand_opt_));
   PetscCall(PetscOptionsInt("-expand_records", "With -reduce_expand: how many of the transient's last records are expanded (0: none)",
                             "CraigBampton", expand_records_, &expand_records_, nullptr));
   SquealOptionsReal("-expand_max_mb",
                     "Without -reduce_expand: keep the expansion only while E (8 N n bytes on rank 0) is at most this many MB "
                     "(beside the reduction's own N x n basis at its peak)",
                     "CraigBampton", &expand_max_mb_, Range::NonNegative(), checks);
-  {
-    PetscBool statics = PETSC_FALSE, set = PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-interface_statics",
-                               "Interface reduction: add the interface's static response to each contact normal (n_c more DOFs), so "
-                               "that an opening point takes a condensed shape; default: for two-body points (pad against disc) only",
-                               "CraigBampton", statics, &statics, &set));
-    if (set) iface_statics_ = (PetscInt)statics;
-  }
+  PetscCall(tristate("-interface_statics",
+                     "Interface reduction: add the interface's static response to each contact normal (n_c more DOFs), so "
+                     "that an opening point takes a condensed shape; default: for two-body points (pad against disc) only",
+                     iface_statics_));
   SquealOptionsReal("-interface_fmax", "Interface reduction: keep the interface's characteristic constraint modes below this frequency (Hz); 0: by count only",
                     "CraigBampton", &iface_fmax_, Range::NonNegative(), checks);
   PetscOptionsEnd();
