@@ -825,7 +825,7 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                             "; solved again at one shift\n",
                             nconv, nev));
       in.slice.reset();
-      lam.clear(), nconv = 0, slice = false;
+      lam.clear(), nconv = 0, slice = false, info_.slice_parts = 0;
     }
   }
   if (nmodes_ != 0 && !(counted && nev == 0) && !slice) {
