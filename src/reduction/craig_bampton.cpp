@@ -573,6 +573,38 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// A signal is obeyed at the fixed-interface eigensolver's next monitor call.
+PetscErrorCode PollInterrupt(EPS eps)
+{
+  PetscFunctionBeginUser;
+  PetscCall(EPSMonitorSet(
+    eps,
+    [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
+      return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
+    },
+    nullptr, nullptr));
+  PetscFunctionReturn(0);
+}
+
+// The converged eigenvalues (real: a symmetric pencil), in the solver's order.
+PetscErrorCode Eigenvalues(EPS eps, std::vector<PetscReal> &lam)
+{
+  PetscInt nconv = 0;
+  PetscFunctionBeginUser;
+  PetscCall(EPSGetConverged(eps, &nconv));
+  lam.resize(nconv);
+  for (PetscInt i = 0; i < nconv; ++i) {
+    PetscScalar kr, ki;
+    PetscCall(EPSGetEigenvalue(eps, i, &kr, &ki));
+    lam[i] = PetscRealPart(kr);
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
 // The interior blocks, the eigensolver and the one MUMPS Cholesky factorisation of K_II that it
 // shares with the constraint modes: the shift-and-invert shift is 0, so the spectral
 // transformation's operator is K_II itself and its KSP, set up here, is not factorised again
@@ -620,12 +652,7 @@ PetscErrorCode CraigBampton::FactorInterior(const Model &full, const cb::Partiti
     if (ncv > 0) in.ncv = ncv;
     if (mpd > 0) in.mpd = mpd;
   }
-  PetscCall(EPSMonitorSet(
-    in.eps,
-    [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
-      return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
-    },
-    nullptr, nullptr));
+  PetscCall(PollInterrupt(in.eps));
   PetscCall(KSPSetOperators(ksp, in.Kii, in.Kii));
   PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &isredundant));
   fpc = pc;
@@ -682,7 +709,6 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
   ST          st;
   KSP         ksp;
   PC          pc;
-  PetscInt    nconv = 0;
   PetscFunctionBeginUser;
   PetscCall(EPSCreate(comm, in.slice.out()));
   PetscCall(EPSSetOptionsPrefix(in.slice, (prefix_ + "slice_").c_str()));
@@ -718,21 +744,10 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
     if (!has) PetscCall(PetscOptionsSetValue(nullptr, name.c_str(), d.second));
   }
   PetscCall(EPSSetFromOptions(in.slice));
-  PetscCall(EPSMonitorSet(
-    in.slice,
-    [](EPS e, PetscInt, PetscInt, PetscScalar *, PetscScalar *, PetscReal *, PetscInt, void *) -> PetscErrorCode {
-      return InterruptPoint(PetscObjectComm((PetscObject)e), "the Craig-Bampton fixed-interface modes");
-    },
-    nullptr, nullptr));
+  PetscCall(PollInterrupt(in.slice));
   PetscCall(EPSSolve(in.slice));
   PetscCall(EPSKrylovSchurGetPartitions(in.slice, &info_.slice_parts));
-  PetscCall(EPSGetConverged(in.slice, &nconv));
-  lam.resize(nconv);
-  for (PetscInt i = 0; i < nconv; ++i) {
-    PetscScalar kr, ki;
-    PetscCall(EPSGetEigenvalue(in.slice, i, &kr, &ki));
-    lam[i] = PetscRealPart(kr);
-  }
+  PetscCall(Eigenvalues(in.slice, lam));
   PetscFunctionReturn(0);
 }
 
@@ -831,13 +846,8 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
   if (nmodes_ != 0 && !(counted && nev == 0) && !slice) {
     for (;;) {
       PetscCall(EPSSolve(in.eps));
-      PetscCall(EPSGetConverged(in.eps, &nconv));
-      lam.resize(nconv);
-      for (PetscInt i = 0; i < nconv; ++i) {
-        PetscScalar kr, ki;
-        PetscCall(EPSGetEigenvalue(in.eps, i, &kr, &ki));
-        lam[i] = PetscRealPart(kr);
-      }
+      PetscCall(Eigenvalues(in.eps, lam));
+      nconv = (PetscInt)lam.size();
       // With a frequency cut-off, grow the request until a converged mode lies above it. Every
       // solve starts afresh, so the next request is sized at once from the modes found (count
       // growing like f^2, as for a plate's in-plane and through-thickness families, + 25 %)
