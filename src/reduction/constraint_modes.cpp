@@ -20,17 +20,31 @@ namespace {
 // blocks"). The factor is reused; only the right-hand side is split.
 constexpr const char *kConstraintWhere = "the Craig-Bampton constraint modes (between two blocks of right-hand sides)";
 
+// -log_view events: the solves, and on several ranks the transfer of the solved columns to W.
+PetscLogEvent ev_solve = 0, ev_exchange = 0;
+PetscErrorCode RegisterEvents()
+{
+  PetscFunctionBeginUser;
+  if (!ev_solve) {
+    PetscCall(PetscLogEventRegister("CBConstraintSolve", MAT_CLASSID, &ev_solve));
+    PetscCall(PetscLogEventRegister("CBConstraintXchg", MAT_CLASSID, &ev_exchange));
+  }
+  PetscFunctionReturn(0);
+}
+
 // Columns per block: block (<= 0: all n at once), at least 1.
 PetscInt BlockSize(PetscInt block, PetscInt n) { return PetscMax(1, block > 0 ? PetscMin(block, n) : n); }
 
-// X(:, j0:j1) = F^{-1} B(:, j0:j1): B holds the right-hand sides either as the sparse transpose
-// (-K_IB)^T (rows j0 .. j1 - 1 taken on rcomm's rank 0 alone: MUMPS takes a sparse right-hand side
-// centralised, by columns, i.e. its transpose by rows) or as a dense block with the rows of X.
-PetscErrorCode SolveBlock(Mat F, Mat B, PetscBool sparse, MPI_Comm rcomm, PetscInt j0, PetscInt j1, PetscInt nI, Mat X)
+// X(:, x0:x0 + j1 - j0) = F^{-1} B(:, j0:j1): B holds the right-hand sides either as the sparse
+// transpose (-K_IB)^T (rows j0 .. j1 - 1 taken on rcomm's rank 0 alone: MUMPS takes a sparse
+// right-hand side centralised, by columns, i.e. its transpose by rows) or as a dense block with the
+// rows of X.
+PetscErrorCode SolveBlock(Mat F, Mat B, PetscBool sparse, MPI_Comm rcomm, PetscInt j0, PetscInt j1, PetscInt x0, PetscInt nI, Mat X)
 {
   Mat Xb;
   PetscFunctionBeginUser;
-  PetscCall(MatDenseGetSubMatrix(X, PETSC_DECIDE, PETSC_DECIDE, j0, j1, &Xb));
+  PetscCall(PetscLogEventBegin(ev_solve, F, 0, 0, 0));
+  PetscCall(MatDenseGetSubMatrix(X, PETSC_DECIDE, PETSC_DECIDE, x0, x0 + j1 - j0, &Xb));
   if (sparse) {
     MatH        Rb;
     IS          rows, cols;
@@ -49,13 +63,17 @@ PetscErrorCode SolveBlock(Mat F, Mat B, PetscBool sparse, MPI_Comm rcomm, PetscI
     PetscCall(MatDenseRestoreSubMatrix(B, &Bb));
   }
   PetscCall(MatDenseRestoreSubMatrix(X, &Xb));
+  PetscCall(PetscLogEventEnd(ev_solve, F, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
 // Psi = -K_II^{-1} K_IB into the first nB columns of W, with a sequential factor F of the whole
 // K_II on every rank: each rank solves a contiguous share of the columns alone (the same
-// sequential solve as on one rank: no distributed solution to scatter), then sends every other
-// rank the rows of its share that rank owns in W, in one all-to-all.
+// sequential solve as on one rank: no distributed solution to scatter). After each block of
+// columns, every rank sends every other rank the rows of its block that rank owns in W, in one
+// all-to-all. Block by block, so that no rank holds more than one block of all its rows besides
+// its rows of W: a rank's whole share of Psi with every row, and its send and receive copies, took
+// 5 GB a rank more on the 126 861-DOF brake (1953 columns a rank).
 PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, PetscInt block, Mat W)
 {
   MPI_Comm        comm, fcomm;
@@ -70,75 +88,97 @@ PetscErrorCode RedundantConstraintModes(Mat F, Mat Kib, PetscBool sparse_rhs, Pe
   PetscCall(MatGetSize(Kib, &nI, &nB));
   PetscCall(MatGetLocalSize(W, &nIloc, nullptr));
   PetscCall(MatGetOwnershipRanges(W, &rows));
-  std::vector<PetscInt> cols(size + 1, 0); // the columns rank r solves: [cols[r], cols[r + 1])
-  for (PetscMPIInt r = 0; r < size; ++r) cols[r + 1] = cols[r] + nB / size + (r < nB % size ? 1 : 0);
-  const PetscInt c0 = cols[rank], k = cols[rank + 1] - c0;
+  // The columns are dealt out in chunks of b, round robin: chunk c = q size + r, global columns
+  // [c b, c b + n), is block q of rank r. Round robin, not one contiguous share a rank: the
+  // interface DOFs come body by body, and on the 126 861-DOF brake one rank's contiguous half took
+  // 3.4 times the other's time. Every rank takes as many blocks (some empty), so that all meet at
+  // each all-to-all and each poll. Only the last chunk can be short, so block q of this rank is
+  // its local columns [q b, q b + n).
+  const PetscInt b       = PetscMax(1, PetscMin(block > 0 ? block : nB, (nB + size - 1) / size));
+  const PetscInt nblocks = (nB + b * size - 1) / (b * size);
+  auto           ncols   = [&](PetscMPIInt r, PetscInt q) { return PetscMax(0, PetscMin(b, nB - (q * size + r) * b)); };
+  auto           col0    = [&](PetscMPIInt r, PetscInt q) { return (q * size + r) * b; };
+  std::vector<PetscInt> mine; // this rank's columns, in its blocks' order
+  for (PetscInt q = 0; q < nblocks; ++q)
+    for (PetscInt j = 0; j < ncols(rank, q); ++j) mine.push_back(col0(rank, q) + j);
+  const PetscInt k = (PetscInt)mine.size();
 
-  MatH X; // nI x k, this rank's columns of Psi, every row
-  PetscCall(MatCreateSeqDense(fcomm, nI, k, nullptr, X.out()));
+  // (-K_IB)^T, this rank's rows, on this rank alone: MUMPS takes a sparse right-hand side by
+  // columns, i.e. its transpose by rows (MatMatTransposeSolve).
+  Mat *sub;
   {
-    // (-K_IB)^T, rows c0 .. c0 + k - 1, on this rank alone: MUMPS takes a sparse right-hand side
-    // by columns, i.e. its transpose by rows (MatMatTransposeSolve).
-    MatH KbiT, B;
+    MatH KbiT;
     IS   isr, isc;
-    Mat *sub;
     PetscCall(MatTranspose(Kib, MAT_INITIAL_MATRIX, KbiT.out()));
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, k, c0, 1, &isr));
+    PetscCall(ISCreateGeneral(PETSC_COMM_SELF, k, mine.data(), PETSC_USE_POINTER, &isr));
     PetscCall(ISCreateStride(PETSC_COMM_SELF, nI, 0, 1, &isc));
     PetscCall(MatCreateSubMatrices(KbiT, 1, &isr, &isc, MAT_INITIAL_MATRIX, &sub));
     PetscCall(ISDestroy(&isr));
     PetscCall(ISDestroy(&isc));
     PetscCall(MatScale(sub[0], -1.0));
-    if (k > 0 && !sparse_rhs) {
-      MatH Bt;
-      PetscCall(MatTranspose(sub[0], MAT_INITIAL_MATRIX, Bt.out()));
-      PetscCall(MatConvert(Bt, MATSEQDENSE, MAT_INITIAL_MATRIX, B.out()));
-    }
-    // Every rank takes as many blocks as rank 0 (the largest share), so that all meet at each poll.
-    const PetscInt b = BlockSize(block, cols[1]), nblocks = (cols[1] + b - 1) / b;
-    for (PetscInt q = 0; q < nblocks; ++q) {
-      const PetscInt j0 = PetscMin(k, q * b), j1 = PetscMin(k, j0 + b);
-      if (j1 > j0) PetscCall(SolveBlock(F, sparse_rhs ? sub[0] : (Mat)B, sparse_rhs, PETSC_COMM_SELF, j0, j1, nI, X));
-      if (q + 1 < nblocks) PetscCall(InterruptPoint(comm, kConstraintWhere));
-    }
-    PetscCall(MatDestroySubMatrices(1, &sub));
   }
-
-  // Rank q receives rows [rows[q], rows[q + 1]) of every rank's columns, column by column.
+  MatH X; // nI x b: one block of this rank's columns of Psi, every row
+  PetscCall(MatCreateSeqDense(fcomm, nI, b, nullptr, X.out()));
+  PetscInt ldx;
+  PetscCall(MatDenseGetLDA(X, &ldx));
   std::vector<PetscMPIInt> scnt(size), sdsp(size), rcnt(size), rdsp(size);
-  PetscInt                 soff = 0, roff = 0;
-  for (PetscMPIInt q = 0; q < size; ++q) {
-    PetscCall(PetscMPIIntCast(soff, &sdsp[q]));
-    PetscCall(PetscMPIIntCast(roff, &rdsp[q]));
-    PetscCall(PetscMPIIntCast((rows[q + 1] - rows[q]) * k, &scnt[q]));
-    PetscCall(PetscMPIIntCast(nIloc * (cols[q + 1] - cols[q]), &rcnt[q]));
-    soff += (rows[q + 1] - rows[q]) * k;
-    roff += nIloc * (cols[q + 1] - cols[q]);
-  }
-  std::vector<PetscScalar> sbuf((size_t)soff), rbuf((size_t)roff);
-  {
-    const PetscScalar *x;
-    PetscInt           ldx;
-    PetscCall(MatDenseGetLDA(X, &ldx));
-    PetscCall(MatDenseGetArrayRead(X, &x));
-    for (PetscMPIInt q = 0; q < size; ++q) {
-      const PetscInt m = rows[q + 1] - rows[q];
-      for (PetscInt j = 0; j < k; ++j)
-        std::copy(x + rows[q] + (size_t)j * ldx, x + rows[q] + m + (size_t)j * ldx, sbuf.begin() + sdsp[q] + (size_t)j * m);
-    }
-    PetscCall(MatDenseRestoreArrayRead(X, &x));
-  }
-  X.reset();
-  PetscCallMPI(MPI_Alltoallv(sbuf.data(), scnt.data(), sdsp.data(), MPIU_SCALAR, rbuf.data(), rcnt.data(), rdsp.data(),
-                             MPIU_SCALAR, comm));
-  PetscScalar *w;
+  std::vector<PetscScalar> sbuf((size_t)nI * b), rbuf((size_t)nIloc * b * size);
   PetscCall(MatDenseGetLDA(W, &lda));
-  PetscCall(MatDenseGetArray(W, &w)); // read-write: W holds the modes already
-  for (PetscMPIInt r = 0; r < size; ++r)
-    for (PetscInt j = cols[r]; j < cols[r + 1]; ++j)
-      std::copy(rbuf.begin() + rdsp[r] + (size_t)(j - cols[r]) * nIloc, rbuf.begin() + rdsp[r] + (size_t)(j - cols[r] + 1) * nIloc,
-                w + (size_t)j * lda);
-  PetscCall(MatDenseRestoreArray(W, &w));
+  for (PetscInt q = 0; q < nblocks; ++q) {
+    const PetscInt j0 = PetscMin(k, q * b), j1 = PetscMin(k, j0 + b), kq = j1 - j0;
+    if (kq > 0) {
+      if (sparse_rhs) PetscCall(SolveBlock(F, sub[0], PETSC_TRUE, PETSC_COMM_SELF, j0, j1, 0, nI, X));
+      else {
+        // The block's dense right-hand sides, made here: all of a rank's share at once took
+        // nI x k doubles.
+        MatH  Bt, Bs;
+        IS    isr, isc;
+        Mat  *blk;
+        PetscCall(ISCreateStride(PETSC_COMM_SELF, kq, j0, 1, &isr));
+        PetscCall(ISCreateStride(PETSC_COMM_SELF, nI, 0, 1, &isc));
+        PetscCall(MatCreateSubMatrices(sub[0], 1, &isr, &isc, MAT_INITIAL_MATRIX, &blk));
+        PetscCall(ISDestroy(&isr));
+        PetscCall(ISDestroy(&isc));
+        PetscCall(MatTranspose(blk[0], MAT_INITIAL_MATRIX, Bt.out()));
+        PetscCall(MatDestroySubMatrices(1, &blk));
+        PetscCall(MatConvert(Bt, MATSEQDENSE, MAT_INITIAL_MATRIX, Bs.out()));
+        PetscCall(SolveBlock(F, Bs, PETSC_FALSE, PETSC_COMM_SELF, 0, kq, 0, nI, X));
+      }
+    }
+    // Rank p receives rows [rows[p], rows[p + 1]) of every rank's block, column by column.
+    PetscCall(PetscLogEventBegin(ev_exchange, W, 0, 0, 0));
+    PetscInt soff = 0, roff = 0;
+    for (PetscMPIInt p = 0; p < size; ++p) {
+      PetscCall(PetscMPIIntCast(soff, &sdsp[p]));
+      PetscCall(PetscMPIIntCast(roff, &rdsp[p]));
+      PetscCall(PetscMPIIntCast((rows[p + 1] - rows[p]) * kq, &scnt[p]));
+      PetscCall(PetscMPIIntCast(nIloc * ncols(p, q), &rcnt[p]));
+      soff += (rows[p + 1] - rows[p]) * kq;
+      roff += nIloc * ncols(p, q);
+    }
+    {
+      const PetscScalar *x;
+      PetscCall(MatDenseGetArrayRead(X, &x));
+      for (PetscMPIInt p = 0; p < size; ++p) {
+        const PetscInt m = rows[p + 1] - rows[p];
+        for (PetscInt j = 0; j < kq; ++j)
+          std::copy(x + rows[p] + (size_t)j * ldx, x + rows[p] + m + (size_t)j * ldx, sbuf.begin() + sdsp[p] + (size_t)j * m);
+      }
+      PetscCall(MatDenseRestoreArrayRead(X, &x));
+    }
+    PetscCallMPI(MPI_Alltoallv(sbuf.data(), scnt.data(), sdsp.data(), MPIU_SCALAR, rbuf.data(), rcnt.data(), rdsp.data(),
+                               MPIU_SCALAR, comm));
+    PetscScalar *w;
+    PetscCall(MatDenseGetArray(W, &w)); // read-write: W holds the modes already
+    for (PetscMPIInt r = 0; r < size; ++r)
+      for (PetscInt j = 0; j < ncols(r, q); ++j)
+        std::copy(rbuf.begin() + rdsp[r] + (size_t)j * nIloc, rbuf.begin() + rdsp[r] + (size_t)(j + 1) * nIloc,
+                  w + (size_t)(col0(r, q) + j) * lda);
+    PetscCall(MatDenseRestoreArray(W, &w));
+    PetscCall(PetscLogEventEnd(ev_exchange, W, 0, 0, 0));
+    if (q + 1 < nblocks) PetscCall(InterruptPoint(comm, kConstraintWhere));
+  }
+  PetscCall(MatDestroySubMatrices(1, &sub));
   PetscFunctionReturn(0);
 }
 
@@ -151,6 +191,7 @@ PetscErrorCode ConstraintModes(MPI_Comm comm, Mat F, Mat Kib, bool redundant, Pe
   PetscReal nrm;
   PetscInt  nI, nB;
   PetscFunctionBeginUser;
+  PetscCall(RegisterEvents());
   PetscCall(MatGetSize(Kib, &nI, &nB));
   if (redundant) PetscCall(RedundantConstraintModes(F, Kib, sparse_rhs, block, W));
   else {
@@ -163,7 +204,7 @@ PetscErrorCode ConstraintModes(MPI_Comm comm, Mat F, Mat Kib, bool redundant, Pe
     const PetscInt b = BlockSize(block, nB);
     for (PetscInt j0 = 0; j0 < nB; j0 += b) {
       if (j0 > 0) PetscCall(InterruptPoint(comm, kConstraintWhere));
-      PetscCall(SolveBlock(F, R, sparse_rhs, comm, j0, PetscMin(nB, j0 + b), nI, W));
+      PetscCall(SolveBlock(F, R, sparse_rhs, comm, j0, PetscMin(nB, j0 + b), j0, nI, W));
     }
   }
   PetscCall(MatDenseGetSubMatrix(W, PETSC_DECIDE, PETSC_DECIDE, 0, nB, &Wpsi));
