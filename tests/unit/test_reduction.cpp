@@ -232,6 +232,46 @@ TEST(Reduction, SpectrumSlicingGivesTheModesOfOneShift)
   }
 }
 
+TEST(Reduction, SlicingUnderTheModeCapKeepsTheLowestModes)
+{
+  // More modes below the cut-off than -reduce_max_modes: slicing then solves below a lower
+  // cut-off, found by counting, that holds 85-100 % of the cap, instead of dropping the rest
+  // after solving them (or one shift for all of the cap). Its modes must be the lowest of the one
+  // shift's (the reference: one shift asked for exactly the cap).
+  PadParams p = SmallPad();
+  Model     full(PETSC_COMM_WORLD);
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  PetscInt      all = 0;
+  ReductionInfo info[2];
+  {
+    Model        red(PETSC_COMM_WORLD);
+    CraigBampton cb(PETSC_COMM_WORLD);
+    ASSERT_EQ(cb.SetFMax(150000), 0);
+    ASSERT_EQ(cb.SetSlice(0), 0);
+    ASSERT_EQ(cb.Reduce(full, red), 0);
+    all = cb.Info().n_modes;
+  }
+  const PetscInt cap = (PetscInt)(0.6 * all);
+  ASSERT_GE(cap, 50 * size); // a part per rank
+  for (int s = 0; s < 2; ++s) {
+    Model        red(PETSC_COMM_WORLD);
+    CraigBampton cb(PETSC_COMM_WORLD);
+    ASSERT_EQ(cb.SetFMax(150000), 0);
+    ASSERT_EQ(cb.SetMaxModes(cap), 0);
+    ASSERT_EQ(cb.SetSlice(s), 0);
+    ASSERT_EQ(cb.Reduce(full, red), 0);
+    info[s] = cb.Info();
+  }
+  EXPECT_EQ(info[0].n_modes, cap);
+  EXPECT_EQ(info[1].slice_parts, size);
+  EXPECT_LE(info[1].n_modes, cap);
+  EXPECT_GE(info[1].n_modes, (PetscInt)(0.85 * cap));
+  ASSERT_LE(info[1].freq.size(), info[0].freq.size());
+  for (size_t k = 0; k < info[1].freq.size(); ++k) EXPECT_NEAR(info[1].freq[k], info[0].freq[k], 1e-9 * info[0].freq[k]) << "mode " << k;
+}
+
 TEST(Reduction, RedundantAndDistributedFactorsGiveTheSameReducedModel)
 {
   // Under mpiexec -n 2 the default solves the constraint modes column share by column share on

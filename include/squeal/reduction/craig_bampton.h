@@ -92,6 +92,7 @@ public:
   PetscErrorCode SetFMax(PetscReal fmax) { fmax_ = fmax, fmax_note_.clear(); return 0; }        // Hz; <= 0: no frequency cut-off
   PetscErrorCode SetNModes(PetscInt nmodes) { nmodes_ = nmodes, fmax_note_.clear(); return 0; } // < 0: no count limit
   PetscErrorCode SetFBand(PetscReal fband) { fband_ = fband; return 0; }      // Hz; > 0: refuse fmax below it
+  PetscErrorCode SetMaxModes(PetscInt max_modes) { max_modes_ = max_modes; return 0; } // >= 1: the fixed-interface modes kept at most
   // true (default): a C found equal to a M + b K (to 1e-12) is reduced as a M_r + b K_r, saving one
   // dense product; false: C is always projected (-reduce_rayleigh).
   PetscErrorCode SetRayleighShortcut(bool on) { rayleigh_ = on ? PETSC_TRUE : PETSC_FALSE; return 0; }
