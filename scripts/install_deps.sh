@@ -5,7 +5,7 @@ set -euo pipefail
 PACKAGES=(
   g++ cmake make pkg-config
   petsc-dev slepc-dev libhdf5-openmpi-dev libeigen3-dev libopenmpi-dev openmpi-bin
-  libopenblas0-serial
+  libopenblas0-serial liblapack-dev
   libgtest-dev libbenchmark-dev libyaml-dev
   python3 python3-numpy python3-h5py python3-matplotlib
   python3-gmsh calculix-ccx python3-meshio
