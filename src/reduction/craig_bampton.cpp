@@ -867,7 +867,7 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
     PetscCheck(nconv == nev || slice_ < 0, comm, PETSC_ERR_NOT_CONVERGED,
                "reduction: spectrum slicing found %" PetscInt_FMT " fixed-interface modes below %g Hz where the inertia counts %" PetscInt_FMT
                " (-%sslice 0 solves them at one shift)",
-               nconv, (double)fmax_, nev, prefix_.c_str());
+               nconv, (double)(std::sqrt(w2slice) / (2 * PETSC_PI)), nev, prefix_.c_str());
     if (nconv != nev) { // chosen for speed only: the one shift's solve instead
       PetscCall(PetscPrintf(comm,
                             "reduction: note: spectrum slicing found %" PetscInt_FMT " fixed-interface modes where the inertia counts %" PetscInt_FMT
@@ -875,6 +875,8 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                             nconv, nev));
       in.slice.reset();
       lam.clear(), nconv = 0, slice = false, info_.slice_parts = 0;
+      nev = PetscMin(nneg, cap); // the one shift asks for the cap's modes below the cut-off itself
+      PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
     }
   }
   if (nmodes_ != 0 && !(counted && nev == 0) && !slice) {
