@@ -402,7 +402,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   PetscCallMPI(MPI_Comm_size(comm_, &size));
   res = TransientResult{};
-  transient::Bookkeeping book(comm_, res, N, nc, on_record); // before anything that may return: the records are cut on the way out
+  transient::Bookkeeping book(comm_, res, N, nc, on_record, energy); // before anything that may return: the records are cut on the way out
   res.N  = N;
   res.nc = nc;
 
@@ -585,8 +585,10 @@ PetscErrorCode TransientAnalysis::Write(const TransientResult &res, io::H5Writer
   PetscCall(out.WriteArray("/transient/V", {n, N}, res.V.data()));
   PetscCall(out.WriteArray("/transient/R", {n, nc, 3}, res.R.data()));
   PetscCall(out.WriteIntArray("/transient/status", {n, nc}, res.status.data()));
-  PetscCall(out.WriteArray("/transient/energy", {n, 4}, res.energy.data()));
-  PetscCall(out.WriteAttribute("/transient/energy", "columns", "E (kinetic + elastic), W_damping, W_reactions, W_load (cumulative, J)"));
+  if (res.energy_kept) {
+    PetscCall(out.WriteArray("/transient/energy", {n, 4}, res.energy.data()));
+    PetscCall(out.WriteAttribute("/transient/energy", "columns", "E (kinetic + elastic), W_damping, W_reactions, W_load (cumulative, J)"));
+  }
   PetscCall(out.WriteAttribute("/transient/status", "values", "0 separated, 1 stuck, 2 sliding"));
   PetscCall(out.WriteAttribute("/transient/R", "columns", "t, b, n (local frame, N)"));
   PetscCall(out.WriteAttribute("/transient", "h", res.h));

@@ -225,9 +225,10 @@ private:
 };
 
 // The ledger of a run: with u, du (one rank, the arrays behind U and dU) and a fixed-size step
-// kernel, the dense ledger for the kernel's sizes when there is one; else the one on Vecs.
+// kernel, the dense ledger for the kernel's sizes when there is one; else the one on Vecs. Without
+// energy, the ledger that only tests the state for NaN (no product with M, C or K).
 PetscErrorCode CreateLedger(const Model &model, const PetscReal *u, const PetscReal *du, bool fixed_size, Vec U, Vec dU, PetscReal h,
-                            std::unique_ptr<Ledger> &out);
+                            std::unique_ptr<Ledger> &out, bool energy = true);
 
 // The records on rank 0, sized for the whole run before it starts (a record is then a few stores,
 // with no growth test per value) and cut to the records written when Run leaves, by any path.
@@ -272,10 +273,13 @@ public:
   // Before anything in Run that may return: the records are cut on the way out. on_record
   // (TransientAnalysis::on_record, may be empty): each record is handed to it on rank 0, and res
   // keeps the state of the last one only.
-  Bookkeeping(MPI_Comm comm, TransientResult &res, PetscInt N, PetscInt nc, const Hook &on_record)
-    : comm_(comm), res_(res), recs_(res, N, nc), hook_(on_record)
+  // energy false: the caller reads no energy (TransientAnalysis::energy), so the ledger only checks
+  // that the state is finite and the records' energies are NaN.
+  Bookkeeping(MPI_Comm comm, TransientResult &res, PetscInt N, PetscInt nc, const Hook &on_record, bool energy = true)
+    : comm_(comm), res_(res), recs_(res, N, nc), hook_(on_record), energy_(energy)
   {
     res.streamed = (bool)on_record;
+    res.energy_kept = energy;
   }
   // Rank 0: room for this many records.
   void SizeRecords(size_t records) { recs_.Size(records); }
@@ -312,6 +316,7 @@ private:
   TransientResult        &res_;
   RecordSink              recs_;
   const Hook             &hook_;
+  const bool              energy_;
   PetscMPIInt             rank_ = 0, size_ = 1;
   std::unique_ptr<Ledger> ledger_;
   std::vector<int>        status_;

@@ -396,7 +396,7 @@ void Levels(const TransientResult &res, size_t from, TransientSummary &s)
     s.frac_stuck        = cnt[kStick] / tot;
     s.frac_sliding      = cnt[kSlip] / tot;
   }
-  if (res.energy.size() >= 4 * nr) {
+  if (res.energy_kept && res.energy.size() >= 4 * nr) {
     PetscReal       emax = 0, defect = 0;
     const PetscReal E0   = res.energy[0];
 #if defined(__GNUC__) && !defined(__clang__)

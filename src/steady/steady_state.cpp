@@ -110,10 +110,11 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     ~Restore()
     {
       tr.u0 = u0, tr.du0 = du0, tr.periods = periods, tr.t_final = t_final, tr.h = h, tr.steps_per_period = steps;
-      tr.on_record = nullptr, tr.on_record_bytes = 0;
+      tr.on_record = nullptr, tr.on_record_bytes = 0, tr.energy = true;
     }
   } restore{transient, transient.u0, transient.du0, transient.periods, transient.t_final, transient.h, transient.steps_per_period};
   if (!u0.empty()) transient.u0 = u0, transient.du0 = du0;
+  transient.energy = false; // the statistics read the state and the reactions only
   // Steps per period from the model unless given: the statistics of an FE model need its levels and
   // lines, not the phase of one period to 1e-6, and at the transient's 1000 a 50-period chunk of
   // the 2625-DOF pad (807 DOFs) took 10.5 min, of the brake (1267 DOFs) 15 min, loaded. 200, as

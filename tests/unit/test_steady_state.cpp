@@ -494,10 +494,12 @@ TEST(SteadyState, RecordsStreamThroughWithoutTheirStates)
   ASSERT_EQ(pl.Settle({}, {}, "the mode"), 0);
   const SteadyStateResult &r = pl.settled;
   EXPECT_FALSE(pl.transient.on_record); // put back
+  EXPECT_TRUE(pl.transient.energy);     // the statistics ran without the energy ledger; put back
   TransientResult tr;
   pl.transient.periods = pl.steady.chunk_periods, pl.transient.t_final = 0;
   ASSERT_EQ(pl.RunTransient(tr), 0);
   EXPECT_FALSE(tr.streamed);
+  EXPECT_TRUE(tr.energy_kept);
   PetscMPIInt rank;
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   EXPECT_EQ(r.chunks, 1);
@@ -536,6 +538,35 @@ TEST(SteadyState, RecordsStreamThroughWithoutTheirStates)
     EXPECT_GE(r.first_chunk_state_bytes, tr.t.size() * N * sizeof(PetscReal));
     EXPECT_LE(r.first_chunk_state_bytes, (tr.t.size() * N + (tr.t.size() / 5 + 2) * N) * sizeof(PetscReal));
   }
+}
+
+// Without the energy (what the statistics run): the same steps to the last bit, no works, the
+// energies of the records NaN (not computed), and nothing of them in the summary.
+TEST(SteadyState, ATransientWithoutEnergyTakesTheSameSteps)
+{
+  Pipeline pl(PETSC_COMM_WORLD);
+  ASSERT_EQ(ChainPipeline(pl), 0);
+  ASSERT_FALSE(pl.stability.unstable.empty());
+  pl.transient.periods = 5, pl.transient.t_final = 0;
+  TransientResult with, without;
+  ASSERT_EQ(pl.RunTransient(with), 0);
+  pl.transient.energy = false;
+  ASSERT_EQ(pl.RunTransient(without), 0);
+  pl.transient.energy = true;
+  EXPECT_TRUE(with.energy_kept);
+  EXPECT_FALSE(without.energy_kept);
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank != 0) return;
+  ASSERT_EQ(with.t.size(), without.t.size());
+  ASSERT_GT(with.t.size(), 100u);
+  EXPECT_EQ(with.U, without.U);
+  EXPECT_EQ(with.V, without.V);
+  EXPECT_EQ(with.R, without.R);
+  EXPECT_EQ(with.status, without.status);
+  for (size_t k = 0; k < with.t.size(); ++k) ASSERT_TRUE(std::isnan(without.energy[4 * k]) && std::isfinite(with.energy[4 * k])) << k;
+  EXPECT_TRUE(std::isfinite(with.summary.energy_defect));
+  EXPECT_EQ(without.summary.energy_defect, 0.0);
 }
 
 // With the signal DOF given no state is kept at all, and the chunks' records lie on one grid (a

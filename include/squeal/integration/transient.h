@@ -98,6 +98,8 @@ struct TransientResult {
   // record's, U, V, R and status the last record's only (the end state), and there is no summary.
   bool                   streamed = false;
   bool                   complete = false;
+  bool                   energy_kept = true; // false: TransientAnalysis::energy was off, energy holds NaN
+
   TransientSummary       summary;
 };
 
@@ -147,6 +149,9 @@ public:
   // on_record_bytes: what it keeps per record, for -transient_max_memory.
   std::function<PetscErrorCode(const TransientResult &, const TransientRecord &)> on_record;
   PetscReal                                                                       on_record_bytes = 0;
+  // Not an option: a caller that reads no energy (the statistical steady state) sets it false, and
+  // the run computes no works and energies (three products with M, C, K per step), only the NaN test.
+  bool energy = true;
 
 private:
   // Run's steps: the mode to start from, the records' number (keep_every raised, or the run refused,
