@@ -29,12 +29,17 @@ void Radix2(std::vector<cd> &a)
     j ^= bit;
     if (i < j) std::swap(a[i], a[j]);
   }
+  if (n < 2) return;
+  // The last stage's twiddles, each from its own angle (not by repeated products: no accumulated
+  // rounding); stage len reads every (n / len)-th. One sincos per butterfly of every stage was
+  // 7 % of a 1000-period statistical run of the 782-DOF brake.
+  std::vector<cd> tw(n / 2);
+  for (size_t k = 0; k < n / 2; ++k) tw[k] = std::polar(1.0, -2 * M_PI * (double)k / (double)n);
   for (size_t len = 2; len <= n; len <<= 1) {
+    const size_t stride = n / len;
     for (size_t i = 0; i < n; i += len)
       for (size_t k = 0; k < len / 2; ++k) {
-        // The twiddle from its own angle, not by repeated products: no accumulated rounding.
-        const cd w = std::polar(1.0, -2 * M_PI * (double)k / (double)len);
-        const cd u = a[i + k], v = a[i + k + len / 2] * w;
+        const cd u = a[i + k], v = a[i + k + len / 2] * tw[k * stride];
         a[i + k] = u + v, a[i + k + len / 2] = u - v;
       }
   }

@@ -30,7 +30,7 @@ PetscErrorCode SteadyState::SetFromOptions()
   SquealOptionsReal("-rtol", "Converged: the 95 % interval of the RMS has a half-width, and the RMS a drift over the record, below this (relative; signal DOF and total normal reaction)",
                     "SteadyState", &rtol, Range::Positive(), checks);
   PetscCall(PetscOptionsInt("-batches", "Batches for the batch-means interval (Student t)", "SteadyState", batches, &batches, nullptr));
-  SquealOptionsReal("-chunk_periods", "The transient runs on in chunks of this many periods of the starting mode until converged",
+  SquealOptionsReal("-chunk_periods", "The transient runs on in chunks of this many periods of the starting mode (or a quarter of the record so far, if longer) until converged",
                     "SteadyState", &chunk_periods, Range::Positive(), checks);
   SquealOptionsReal("-max_periods", "Budget: at most this many periods of the starting mode in all", "SteadyState", &max_periods,
                     Range::Positive(), checks);
@@ -60,8 +60,11 @@ PetscErrorCode SteadyState::SetFromOptions()
 
 PetscErrorCode SteadyState::Analyse(SteadyStateResult &res) const
 {
-  PetscMPIInt rank;
+  static PetscLogEvent ev = 0; // the statistics after each chunk, in -log_view
+  PetscMPIInt          rank;
   PetscFunctionBeginUser;
+  if (!ev) PetscCall(PetscLogEventRegister("SteadyAnalyse", PETSC_OBJECT_CLASSID, &ev));
+  PetscCall(PetscLogEventBegin(ev, 0, 0, 0, 0));
   PetscCallMPI(MPI_Comm_rank(comm_, &rank));
   int conv = 0;
   if (rank == 0 && res.t.size() >= 2) {
@@ -75,11 +78,14 @@ PetscErrorCode SteadyState::Analyse(SteadyStateResult &res) const
     conv = L.rms > 0 && L.rel_halfwidth < rtol && L.drift < rtol && (res.rn.empty() || (R.rel_halfwidth < rtol && R.drift < rtol));
   }
   PetscCallMPI(MPI_Bcast(&conv, 1, MPI_INT, 0, comm_));
+  PetscCall(PetscLogEventEnd(ev, 0, 0, 0, 0));
   res.converged = conv;
   PetscFunctionReturn(0);
 }
 
 namespace {
+// Chunks after the first ones: this fraction of the record so far (SteadyState::Run).
+constexpr PetscReal kChunkGrowth = 0.25;
 // Above this many DOFs the statistical steady state takes kFeStepsPerPeriod steps per period.
 constexpr PetscInt  kDenseStepsMaxDofs = 200;
 constexpr PetscReal kFeStepsPerPeriod  = 200;
@@ -144,6 +150,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
   // Chunks of a whole number of records: the records of successive chunks lie on one grid.
   const PetscInt keep = transient.keep_every;
   PetscInt       chunk_steps = 0, max_chunks = 0;
+  PetscInt64     rest = 0, rest_done = 0; // steps after the first chunk: the budget's, those run
   PetscReal      h = 0, elapsed = 0;
   // The records as the transient hands them over (rank 0), none kept whole: t, the signal DOF, the
   // total normal reaction and the modal projection's values. A later chunk's first record is the
@@ -198,7 +205,13 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
     if (k == 0) {
       transient.periods = chunk_periods, transient.t_final = 0;
     } else {
-      transient.h = h, transient.t_final = chunk_steps * h;
+      // Chunks grow with the record (kChunkGrowth of it, on the record grid): the statistics after each
+      // chunk read the whole record, so with chunks of a fixed length their cost grew as the square
+      // of the run (35 s of 108 s in 1000 periods of the 782-DOF brake, 20 chunks). Growing, the
+      // statistics cost a bounded multiple of the last one; the first chunks keep their length.
+      const PetscInt64 grow  = (PetscInt64)std::llround(kChunkGrowth * elapsed / h / keep) * keep;
+      const PetscInt64 steps = std::min<PetscInt64>(std::max<PetscInt64>(chunk_steps, grow), rest - rest_done);
+      transient.h = h, transient.t_final = (PetscReal)steps * h;
       transient.on_record_bytes = (PetscReal)(3 + 2 * modes_re.size() + 1) * sizeof(PetscReal);
     }
     PetscCall(transient.Run(model, eq, stab, ti, tr));
@@ -228,6 +241,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       // Later chunks: a whole number of records, about chunk_periods each.
       chunk_steps = std::max<PetscInt>(keep, (PetscInt)std::llround(chunk_periods * tr.T_ref / h / keep) * keep);
       max_chunks  = 1 + (PetscInt)std::ceil((max_periods - chunk_periods) * tr.T_ref / (chunk_steps * h) - 1e-9);
+      rest        = (PetscInt64)(max_chunks - 1) * chunk_steps;
       if (auto_dof) {
         // The DOF the transient's summary reads over the last 20 % of this chunk's records.
         if (rank == 0) {
@@ -254,6 +268,8 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       std::copy(tr.V.end() - N, tr.V.end(), endV.begin());
     }
     elapsed += tr.steps * h;
+    if (k > 0) rest_done += tr.steps;
+    const bool last = rest_done >= rest;
     PetscCallMPI(MPI_Bcast(endU.data(), (int)N, MPIU_REAL, 0, comm_));
     PetscCallMPI(MPI_Bcast(endV.data(), (int)N, MPIU_REAL, 0, comm_));
     transient.u0 = endU, transient.du0 = endV;
@@ -272,13 +288,13 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
                           " %.4e +- %.1f %%, drift %.1f %%%s: %s\n",
                           k + 1, (double)res.periods, (double)elapsed, res.dof, (double)L.rms, 100 * (double)L.rel_halfwidth,
                           100 * (double)L.drift, nr,
-                          res.converged ? "converged" : (k + 1 >= max_chunks ? "budget reached" : "running on")));
+                          res.converged ? "converged" : (last ? "budget reached" : "running on")));
     if (monitor_) {
       PetscCall(PetscViewerPushFormat(monitor_, monitor_format_));
       PetscCall(View(res, monitor_));
       PetscCall(PetscViewerPopFormat(monitor_));
     }
-    if (k + 1 >= max_chunks) {
+    if (last) {
       res.complete = true;
       break;
     }

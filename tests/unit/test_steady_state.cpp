@@ -591,3 +591,27 @@ TEST(SteadyState, AGivenSignalDofKeepsNoStateAndChunksJoinOnTheGrid)
     EXPECT_EQ(r.projection.Records(), r.t.size());
   }
 }
+
+// Past four first chunks, a chunk is a quarter of the record so far (the statistics after each read
+// the whole record): 5, 5, 5, 5, then 6.25, 7.8, 9.8, ... periods, the last one cut to the budget.
+// 60 periods: 9 chunks instead of 12, the budget's steps exactly, the records on one grid.
+TEST(SteadyState, ChunksGrowWithTheRecordAndEndOnTheBudget)
+{
+  Pipeline pl(PETSC_COMM_WORLD);
+  ASSERT_EQ(ChainPipeline(pl), 0);
+  pl.steady.dof = 7, pl.steady.chunk_periods = 5, pl.steady.max_periods = 60, pl.steady.rtol = 1e-9;
+  ASSERT_EQ(pl.Settle({}, {}, "the mode"), 0);
+  const SteadyStateResult &r = pl.settled;
+  EXPECT_EQ(r.chunks, 9);
+  EXPECT_NEAR(r.periods, 60.0, 1e-6);
+  EXPECT_TRUE(r.complete);
+  EXPECT_FALSE(r.converged);
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0) {
+    ASSERT_GT(r.t.size(), 2u);
+    const double dt = r.t[1] - r.t[0];
+    for (size_t i = 1; i < r.t.size(); ++i) ASSERT_NEAR(r.t[i] - r.t[i - 1], dt, 1e-9 * dt) << i;
+    EXPECT_NEAR(r.t.back(), 60 * r.T_ref, 1e-9 * r.t.back());
+  }
+}

@@ -24,7 +24,7 @@
 //             when the names could be chance: within the tolerance (3 resolutions of the record)
 //             more than a quarter of the band would be named (the brake after 50 periods: +-1164 Hz).
 // The same steps as scripts/steady_state.py, which reads the records after the run; here the
-// transient runs on in chunks of -steady_chunk_periods until the levels converge or
+// transient runs on in chunks of -steady_chunk_periods (later ones a quarter of the record so far) until the levels converge or
 // -steady_max_periods is reached. FFTs of any length: radix 2, Bluestein's chirp-z otherwise.
 #pragma once
 
