@@ -209,6 +209,11 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                              "ThetaIntegrator::Step", native_arrays_, &native_arrays_, nullptr));
   PetscCall(PetscOptionsBool("-fixed_size", "Dense back end: run the step compiled for the model's sizes when available (false: run-time sizes)",
                              "ThetaIntegrator::SetUp", fixed_size_, &fixed_size_, nullptr));
+  const char *const hstorage[] = {"auto", "dense", "sparse"};
+  PetscCall(PetscOptionsEList("-h_storage",
+                              "Dense back end: H^T (3 n_c x N) in the step's and the tangent's products as a dense matrix or by its "
+                              "non-zeros (auto: sparse when at most 10 % of its entries are non-zero and N >= 64, as with physical contact DOFs)",
+                              "ThetaIntegrator::SetFromOptions", hstorage, 3, hstorage[h_storage_], &h_storage_, nullptr));
   const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
   PetscCall(PetscOptionsEList("-parallel_solver",
                               "Sparse back end on several ranks: direct (MUMPS LU, distributed), cg (CG + block Jacobi, each rank's "
@@ -401,6 +406,13 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   Ht_.setZero(3 * nc_, n_);
   for (PetscInt c = 0; c < nc_; ++c)
     for (int d = 0; d < 3; ++d) m.contacts.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) { Ht_(3 * c + d, j) += v; });
+  // H^T also by its non-zeros where it is sparse: with the contact DOFs physical (a Craig-Bampton
+  // model) a row has a few non-zeros of N, and its dense products were a third of the step's and of
+  // the tangent's products on the reduced 2625-DOF pad (3 n_c = 525, N = 562).
+  const PetscReal nnz = (PetscReal)(Ht_.array() != 0.0).count();
+  ht_sparse_          = nc_ > 0 && (h_storage_ == 2 || (h_storage_ == 0 && n_ >= 64 && nnz <= 0.1 * (PetscReal)Ht_.size()));
+  if (ht_sparse_) Hts_ = Ht_.sparseView(0.0, 0.0);
+  else Hts_.resize(0, 0);
   P1_ = llt.solve(B);
   P2_ = -h * llt.solve(Kd_);
   p3_ = h * llt.solve(Fd_);
@@ -584,18 +596,20 @@ PetscErrorCode ThetaIntegrator::Local(Vec x, Eigen::VectorXd &out)
   if (dense_ && size_ == 1) {
     const PetscScalar *a;
     PetscCall(VecGetArrayRead(x, &a));
-    out.noalias() = Ht_ * Eigen::Map<const Eigen::VectorXd>(a, n_);
+    if (ht_sparse_) out.noalias() = Hts_ * Eigen::Map<const Eigen::VectorXd>(a, n_);
+    else out.noalias() = Ht_ * Eigen::Map<const Eigen::VectorXd>(a, n_);
     PetscCall(VecRestoreArrayRead(x, &a));
   } else if (dense_) {
     PetscCall(Gather(x, full_U_));
-    out.noalias() = Ht_ * full_U_;
+    if (ht_sparse_) out.noalias() = Hts_ * full_U_;
+    else out.noalias() = Ht_ * full_U_;
   } else PetscCall(ToLocal(x, out));
   PetscFunctionReturn(0);
 }
 
 void ThetaIntegrator::SetUpKernel()
 {
-  DenseStepData d{&P1_, &P2_, &Y_, &Ht_, &p3_, &g0_, h_, theta_, &local_};
+  DenseStepData d{&P1_, &P2_, &Y_, &Ht_, ht_sparse_ ? &Hts_ : nullptr, &p3_, &g0_, h_, theta_, &local_};
   // The fixed-size kernels run the fixed point only (SolveSized); Newton runs in the run-time-sized one.
   kernel_ = MakeDenseStepKernel(d, fixed_size_ && local_.Solver() == ContactSolver::kFixedPoint);
 }
@@ -700,6 +714,10 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
                                    " passes, rho scale %g\n",
                                    (double)theta_, (double)h_, dense_ ? "dense" : "sparse (KSP)", (double)fp_tol_, fp_max_it_,
                                    (double)rho_scale_));
+  if (dense_ && nc_ > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  H^T: %s (%" PetscInt_FMT " non-zeros of %" PetscInt_FMT " x %" PetscInt_FMT ", -%sh_storage)\n",
+                                     ht_sparse_ ? "sparse" : "dense", (PetscInt)(ht_sparse_ ? Hts_.nonZeros() : (Ht_.array() != 0.0).count()),
+                                     3 * nc_, n_, prefix_.c_str()));
   if (nc_ > 0 && local_.Solver() == ContactSolver::kNewton)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  contact solver: semi-smooth Newton (-%scontact_solver %s, at most %" PetscInt_FMT

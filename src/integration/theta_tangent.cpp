@@ -68,7 +68,8 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       // One column (GMRES): two matrix-vector products; Eigen's matrix-matrix path would first
       // copy (pack) the whole H^T for two columns.
       tHv_.resize(3 * nc_, 2 * k);
-      if (k == 1) tHv_.col(0).noalias() = Ht_ * tX_.col(0), tHv_.col(1).noalias() = Ht_ * tX_.col(1);
+      if (ht_sparse_) tHv_.noalias() = Hts_ * tX_;
+      else if (k == 1) tHv_.col(0).noalias() = Ht_ * tX_.col(0), tHv_.col(1).noalias() = Ht_ * tX_.col(1);
       else tHv_.noalias() = Ht_ * tX_;
       for (Eigen::Index q = 0; q < m; ++q) tw_.row(q) = tHv_.row(tclosed_[q]).head(k);
       for (Eigen::Index q = 0; q < m; q += 3) tg_.row(q + kN) = tHv_.row(tclosed_[q] + kN).tail(k);

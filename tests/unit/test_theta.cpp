@@ -432,3 +432,84 @@ TEST(Theta, NativeArraysAndPublicApiGiveTheSameSteps)
   }
   for (int i = 0; i < 6; ++i) EXPECT_EQ(out[0][i], out[1][i]) << "component " << i;
 }
+
+TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
+{
+  // H^T by its non-zeros (-theta_h_storage, auto above N = 64 at <= 10 % non-zeros) in (S5), the gaps,
+  // the local velocities and the step tangent, against the dense H^T: a 24-cell chain (N = 72, a
+  // contact on every cell, rotated frames, so 1 to 2 non-zeros in a row of 72), 3000 steps from
+  // its equilibrium with a velocity pattern that opens and slides points, and at every 100th step a
+  // tangent of one column and of a block of four. Equal to round-off (measured: bit for bit, as a
+  // row's one or two products summed with exact zeros give the same sum).
+  ChainParams cp;
+  cp.cells  = 24;
+  cp.cell.V = 0.75;
+  Model model;
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  SlidingEquilibrium eq;
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  const PetscInt N = model.Size(), nc = model.contacts.Size();
+  ASSERT_EQ(N, 72);
+  ASSERT_EQ(nc, 24);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-hd_h_storage", "dense"), 0);
+  struct Integration {
+    ThetaIntegrator ti{PETSC_COMM_WORLD};
+    Vec             U = nullptr, dU = nullptr;
+    Eigen::VectorXd r;
+    ~Integration()
+    {
+      VecDestroy(&U);
+      VecDestroy(&dU);
+    }
+  } run[2]; // auto (sparse here), dense
+  Eigen::VectorXd v0(N);
+  for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
+  for (PetscInt c = 0; c < nc; c += 2) // every other point starts at its surface's speed
+    for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
+  for (int k = 0; k < 2; ++k) {
+    if (k == 1) ASSERT_EQ(run[k].ti.SetOptionsPrefix("hd_"), 0);
+    ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
+    ASSERT_EQ(run[k].ti.SetUp(model, 2e-6), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
+    ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
+    SetState(run[k].dU, v0);
+    run[k].r.setZero(3 * nc);
+    for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[(size_t)c];
+  }
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-hd_h_storage"), 0);
+  ASSERT_TRUE(run[0].ti.Dense() && run[1].ti.Dense());
+  ASSERT_TRUE(run[0].ti.SparseHt());
+  ASSERT_FALSE(run[1].ti.SparseHt());
+  std::vector<int> status;
+  int              seen[3] = {0, 0, 0};
+  double           worst_state = 0, worst_tangent = 0;
+  Eigen::VectorXd  vloc[2];
+  for (PetscInt i = 0; i < 3000; ++i) {
+    StepInfo info[2];
+    for (int k = 0; k < 2; ++k) ASSERT_EQ(run[k].ti.Step(run[k].U, run[k].dU, run[k].r, &info[k]), 0);
+    const Eigen::VectorXd u0 = test::ToDense(run[0].U), u1 = test::ToDense(run[1].U);
+    const Eigen::VectorXd v0s = test::ToDense(run[0].dU), v1s = test::ToDense(run[1].dU);
+    worst_state = std::max({worst_state, (u0 - u1).norm() / u1.norm(), (v0s - v1s).norm() / v1s.norm()});
+    run[0].ti.Contact().Status(run[0].r, status);
+    for (int s : status) ++seen[s];
+    if (i % 100 != 99) continue;
+    for (int k = 0; k < 2; ++k) ASSERT_EQ(run[k].ti.Local(run[k].dU, vloc[k]), 0);
+    worst_state = std::max(worst_state, (vloc[0] - vloc[1]).norm() / vloc[1].norm());
+    for (Eigen::Index cols : {1, 4}) {
+      Eigen::MatrixXd dU[2], ddU[2];
+      dU[0] = Eigen::MatrixXd::Random(N, cols), ddU[0] = Eigen::MatrixXd::Random(N, cols);
+      dU[1] = dU[0], ddU[1] = ddU[0];
+      // Both tangents along the dense run's step: the flows differ by round-off only.
+      for (int k = 0; k < 2; ++k) ASSERT_EQ(run[k].ti.StepTangent(run[1].r, vloc[1], dU[k], ddU[k]), 0);
+      worst_tangent = std::max({worst_tangent, (dU[0] - dU[1]).norm() / dU[1].norm(), (ddU[0] - ddU[1]).norm() / ddU[1].norm()});
+    }
+  }
+  PetscPrintf(PETSC_COMM_WORLD, "open / stick / slip point-steps %d / %d / %d; sparse against dense H^T: states %.2e, tangents %.2e\n", seen[kOpen],
+              seen[kStick], seen[kSlip], worst_state, worst_tangent);
+  EXPECT_GT(seen[kOpen], 0);
+  EXPECT_GT(seen[kSlip], 0);
+  EXPECT_LT(worst_state, 1e-10);
+  EXPECT_LT(worst_tangent, 1e-12);
+}

@@ -10,14 +10,20 @@
 #include "squeal/contact/local_solver.h"
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #include <memory>
 
 namespace squeal {
 
+using SparseRowMatrix = Eigen::SparseMatrix<PetscReal, Eigen::RowMajor>;
+
 // What a dense step reads, owned by ThetaIntegrator and valid until its next SetUp.
 struct DenseStepData {
   const Eigen::MatrixXd *P1, *P2, *Y, *Ht; // A^-1 B, -h A^-1 K, A^-1 H, H^T
+  // H^T with its non-zeros only, or null: the run-time-sized kernel then reads it for (S5) and the
+  // gaps. With the contact DOFs kept physical (Craig-Bampton) a row of H^T has a few non-zeros of N.
+  const SparseRowMatrix *Hts;
   const Eigen::VectorXd *p3, *g0;          // h A^-1 F, gaps at U = 0
   PetscReal              h, theta;
   LocalContactSolver    *local;
@@ -44,7 +50,8 @@ class DenseStepKernelT final : public DenseStepKernel {
 public:
   explicit DenseStepKernelT(const DenseStepData &d)
     : n_(d.P1->rows()), nc_(d.g0->size()), h_(d.h), t_(d.theta), P1_(d.P1->data(), n_, n_), P2_(d.P2->data(), n_, n_),
-      hY_(d.h * *d.Y), Ht_(d.Ht->data(), 3 * nc_, n_), p3_(d.p3->data(), n_), g0_(d.g0->data(), nc_), local_(d.local)
+      hY_(d.h * *d.Y), Ht_(d.Ht->data(), 3 * nc_, n_), Hts_(N == Eigen::Dynamic ? d.Hts : nullptr), p3_(d.p3->data(), n_),
+      g0_(d.g0->data(), nc_), local_(d.local)
   {
     vf_.resize(n_), dU0_.resize(n_), wf_.resize(3 * nc_), gap_.resize(nc_);
   }
@@ -65,9 +72,23 @@ public:
     vf += p3_;
     if (nc_ > 0) {
       Eigen::Map<VecM> R(r.data(), 3 * nc_);
-      wf.noalias() = Ht_ * vf; // (S5)
-      dU0          = U + h * (1 - t) * dU;
-      for (Eigen::Index c = 0; c < gap.size(); ++c) gap[c] = Ht_.row(3 * c + kN).dot(dU0) + g0_[c];
+      dU0        = U + h * (1 - t) * dU;
+      bool local = false;
+      if constexpr (N == Eigen::Dynamic) {
+        if (Hts_) {
+          wf.noalias() = *Hts_ * vf; // (S5)
+          for (Eigen::Index c = 0; c < gap.size(); ++c) {
+            PetscReal g = 0;
+            for (SparseRowMatrix::InnerIterator it(*Hts_, 3 * c + kN); it; ++it) g += it.value() * dU0[it.index()];
+            gap[c] = g + g0_[c];
+          }
+          local = true;
+        }
+      }
+      if (!local) {
+        wf.noalias() = Ht_ * vf; // (S5)
+        for (Eigen::Index c = 0; c < gap.size(); ++c) gap[c] = Ht_.row(3 * c + kN).dot(dU0) + g0_[c];
+      }
       *info = local_->SolveSized<NC>(wf, gap, R); // (S6)-(S7)
       dU0   = dU;
       dU    = vf;
@@ -93,6 +114,7 @@ private:
   const CMap<N, N>    P1_, P2_;
   const Eigen::Matrix<PetscReal, N, M> hY_; // h Y: Eigen's fixed-size h (Y R) multiplied Y by h at every step
   const CMap<M, N>    Ht_;
+  const SparseRowMatrix *Hts_; // run-time sizes only
   const CMap<N, 1>    p3_;
   const CMap<NC, 1>   g0_;
   LocalContactSolver *local_;

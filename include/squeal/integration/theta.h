@@ -110,6 +110,7 @@ public:
   PetscReal                 Theta() const { return theta_; }
   PetscReal                 StepSize() const { return h_; }
   bool                      Dense() const { return dense_; }
+  bool                      SparseHt() const { return ht_sparse_; } // H^T by its non-zeros in the dense step and tangent (-theta_h_storage)
   bool                      FixedSizeKernel() const { return kernel_ && kernel_->FixedSize(); }
   // The dense step kernel on one rank (else null), for callers that hold the state in arrays of their
   // own and step them without a Vec (the transient's loop): Step on Vecs over those arrays does the same.
@@ -148,6 +149,9 @@ private:
 
   // dense back end
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
+  SparseRowMatrix Hts_;                      // H^T's non-zeros, when ht_sparse_
+  bool            ht_sparse_ = false;
+  PetscInt        h_storage_ = 0;            // -theta_h_storage: 0 auto, 1 dense, 2 sparse
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
   PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
   std::unique_ptr<DenseStepKernel> kernel_; // (S4)-(S9) on the matrices above, sizes fixed at compile time if possible
