@@ -214,6 +214,12 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                               "Dense back end: H^T (3 n_c x N) in the step's and the tangent's products as a dense matrix or by its "
                               "non-zeros (auto: sparse when at most 10 % of its entries are non-zero and N >= 64, as with physical contact DOFs)",
                               "ThetaIntegrator::SetFromOptions", hstorage, 3, hstorage[h_storage_], &h_storage_, nullptr));
+  const char *const modal[] = {"auto", "false", "true"};
+  PetscCall(PetscOptionsEList("-modal_tangent",
+                              "Dense back end: shooting's and Floquet's step tangents in the modal coordinates of (K, M), where C is "
+                              "diagonal too (O(n_c N) a column and step instead of O(N^2)); auto: when C is diagonal there and the "
+                              "products cost less than 0.6 x the nodal ones",
+                              "ThetaIntegrator::ModalTangent", modal, 3, modal[modal_tangent_], &modal_tangent_, nullptr));
   const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
   PetscCall(PetscOptionsEList("-parallel_solver",
                               "Sparse back end on several ranks: direct (MUMPS LU, distributed), cg (CG + block Jacobi, each rank's "
@@ -396,6 +402,7 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   }
   Fd_.resize(n_);
   PetscCall(Gather(m.F, Fd_));
+  modal_h_ = -1; // ModalTangent's per-h quantities, H^T Phi included (the contacts may have changed)
   const PetscReal       h = h_, t = theta_;
   const Eigen::MatrixXd A = Md_ + h * t * Cd_ + h * h * t * t * Kd_;
   const Eigen::MatrixXd B = Md_ - h * (1 - t) * Cd_ - h * h * t * (1 - t) * Kd_;
@@ -718,6 +725,9 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
     PetscCall(PetscViewerASCIIPrintf(viewer, "  H^T: %s (%" PetscInt_FMT " non-zeros of %" PetscInt_FMT " x %" PetscInt_FMT ", -%sh_storage)\n",
                                      ht_sparse_ ? "sparse" : "dense", (PetscInt)(ht_sparse_ ? Hts_.nonZeros() : (Ht_.array() != 0.0).count()),
                                      3 * nc_, n_, prefix_.c_str()));
+  if (dense_ && modal_state_ >= 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  step tangents: %s (-%smodal_tangent%s%s)\n", modal_on_ ? "modal" : "nodal", prefix_.c_str(),
+                                     modal_why_.empty() ? "" : ": ", modal_why_.c_str()));
   if (nc_ > 0 && local_.Solver() == ContactSolver::kNewton)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  contact solver: semi-smooth Newton (-%scontact_solver %s, at most %" PetscInt_FMT

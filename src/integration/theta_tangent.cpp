@@ -45,9 +45,15 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
   const ContactSet &cs = model_->contacts;
   PetscFunctionBeginUser;
   PetscCheck(dense_, comm_, PETSC_ERR_SUP, "the exact step tangent needs the dense back end (N <= -theta_dense_max)");
-  const Eigen::Index k = dU.cols();
-  tvf_.noalias() = P1_ * ddU;
-  tvf_.noalias() += P2_ * dU;
+  const Eigen::Index k     = dU.cols();
+  const bool         modal = step && step->modal;
+  PetscCheck(!modal || (modal_on_ && modal_h_ == h_), comm_, PETSC_ERR_ARG_WRONGSTATE,
+             "modal step tangent without ModalTangent at this step size");
+  if (modal) tvf_ = (ddU.array().colwise() * p1m_.array() + dU.array().colwise() * p2m_.array()).matrix();
+  else {
+    tvf_.noalias() = P1_ * ddU;
+    tvf_.noalias() += P2_ * dU;
+  }
   if (dh) tvf_.noalias() += *step->c * *dh;
   if (nc_ > 0) {
     local_.Status(r, tstatus_);
@@ -68,9 +74,10 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       // One column (GMRES): two matrix-vector products; Eigen's matrix-matrix path would first
       // copy (pack) the whole H^T for two columns.
       tHv_.resize(3 * nc_, 2 * k);
-      if (ht_sparse_) tHv_.noalias() = Hts_ * tX_;
-      else if (k == 1) tHv_.col(0).noalias() = Ht_ * tX_.col(0), tHv_.col(1).noalias() = Ht_ * tX_.col(1);
-      else tHv_.noalias() = Ht_ * tX_;
+      const Eigen::MatrixXd &Ht = modal ? Htm_ : Ht_;
+      if (ht_sparse_ && !modal) tHv_.noalias() = Hts_ * tX_;
+      else if (k == 1) tHv_.col(0).noalias() = Ht * tX_.col(0), tHv_.col(1).noalias() = Ht * tX_.col(1);
+      else tHv_.noalias() = Ht * tX_;
       for (Eigen::Index q = 0; q < m; ++q) tw_.row(q) = tHv_.row(tclosed_[q]).head(k);
       for (Eigen::Index q = 0; q < m; q += 3) tg_.row(q + kN) = tHv_.row(tclosed_[q] + kN).tail(k);
       // With a valid factor of this step only the right-hand side is assembled (the O(m^2) matrix
@@ -146,7 +153,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       // delta dU^{i+1} += h Y delta r, with delta r = 0 on the open points (Y read in place).
       tdrf_.setZero(3 * nc_, k);
       for (Eigen::Index q = 0; q < m; ++q) tdrf_.row(tclosed_[q]) = tdr_.row(q);
-      tvf_.noalias() += h * (Y_ * tdrf_);
+      tvf_.noalias() += h * ((modal ? Ym_ : Y_) * tdrf_);
     }
   }
   dU += h * (t * tvf_ + (1 - t) * ddU);

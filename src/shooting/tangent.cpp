@@ -161,6 +161,8 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
     for (auto &f : trF_) f.valid = false;
   }
   const PetscInt nc = model_->contacts.Size();
+  bool           modal;
+  PetscCall(ti_->ModalTangent(&modal));
   if (!trC_ready_) {
     // The h-sources depend on the base flow only: once per stored trajectory.
     trC_.resize(N, steps);
@@ -172,7 +174,13 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
       PetscCall(ti_->StepTangentSource(sve_, sdUi_, sdUn_, sr_, sc_));
       trC_.col(i) = sc_;
     }
+    trCm_.resize(0, 0), trdUm_.resize(0, 0);
     trC_ready_ = true;
+  }
+  if (modal && trCm_.cols() != steps) {
+    // Once per stored flow, as much as one column's nodal tangent integration.
+    trCm_.noalias()  = ti_->ModalInverse() * trC_;
+    trdUm_.noalias() = ti_->ModalInverse() * trdU_;
   }
   // On several ranks every rank holds the whole flow (the dense back end runs replicated) and the
   // columns are independent: each rank integrates its share and the shares are exchanged. Fewer
@@ -180,9 +188,13 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   const Eigen::Index k     = dZ0.cols();
   const bool         split = size_ > 1 && k >= size_;
   const Eigen::Index c0 = split ? k * rank_ / size_ : 0, kc = split ? k * (rank_ + 1) / size_ - c0 : k;
-  Eigen::MatrixXd    dU = dZ0.middleCols(c0, kc).topRows(N), ddU = dZ0.middleCols(c0, kc).bottomRows(N);
+  Eigen::MatrixXd    dU, ddU;
+  if (modal) dU.noalias() = ti_->ModalInverse() * dZ0.middleCols(c0, kc).topRows(N), ddU.noalias() = ti_->ModalInverse() * dZ0.middleCols(c0, kc).bottomRows(N);
+  else dU = dZ0.middleCols(c0, kc).topRows(N), ddU = dZ0.middleCols(c0, kc).bottomRows(N);
   Eigen::RowVectorXd dh = dT.segment(c0, kc) / (PetscReal)steps;
   ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
+  sd.modal = modal;
+  const Eigen::MatrixXd &dUs = modal ? trdUm_ : trdU_, &Cs = modal ? trCm_ : trC_;
   // One-column products (GMRES) would refactorise each step's closed-point system every time:
   // keep the factors along this flow while they fit in -shoot_tangent_cache_mb.
   const double factor_mb = 8.0 * 9.0 * nc * nc * steps / 1048576.0;
@@ -191,14 +203,19 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   for (PetscInt i = 0; i < steps; ++i) {
     if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a tangent integration"));
     sd.factor = cache ? &trF_[i] : nullptr;
-    sdUi_ = trdU_.col(i), sdUn_ = trdU_.col(i + 1), sc_ = trC_.col(i);
+    sdUi_ = dUs.col(i), sdUn_ = dUs.col(i + 1), sc_ = Cs.col(i);
     if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
     else sr_.resize(0), svs_.resize(0), sve_.resize(0);
     PetscCall(ti_->StepTangent(sr_, sve_, sd, dh, dU, ddU));
   }
   dZ1.resize(2 * N, k);
-  dZ1.middleCols(c0, kc).topRows(N)    = dU;
-  dZ1.middleCols(c0, kc).bottomRows(N) = ddU;
+  if (modal) {
+    dZ1.middleCols(c0, kc).topRows(N).noalias()    = ti_->ModalBasis() * dU;
+    dZ1.middleCols(c0, kc).bottomRows(N).noalias() = ti_->ModalBasis() * ddU;
+  } else {
+    dZ1.middleCols(c0, kc).topRows(N)    = dU;
+    dZ1.middleCols(c0, kc).bottomRows(N) = ddU;
+  }
   if (split) PetscCall(ExchangeColumns(dZ1));
   ++evaluations_, ++tangents_;
   tangent_columns_ += dZ0.cols();

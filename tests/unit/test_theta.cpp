@@ -468,8 +468,11 @@ TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
   for (PetscInt c = 0; c < nc; c += 2) // every other point starts at its surface's speed
     for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
   for (int k = 0; k < 2; ++k) {
-    if (k == 1) ASSERT_EQ(run[k].ti.SetOptionsPrefix("hd_"), 0);
+    if (k == 1) {
+      ASSERT_EQ(run[k].ti.SetOptionsPrefix("hd_"), 0);
+    }
     ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
+    ASSERT_EQ(run[k].ti.SetDenseMax(200), 0); // the dense back end also under -theta_dense_max 0 (ctest unit_tests_np2_sparse)
     ASSERT_EQ(run[k].ti.SetUp(model, 2e-6), 0);
     ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
     ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);

@@ -235,6 +235,7 @@ private:
   VecH            trx_;
   PetscReal       trT_ = 0;
   Eigen::MatrixXd trU_, trdU_, trR_, trV_, trC_;
+  Eigen::MatrixXd trdUm_, trCm_; // trdU_ and trC_ in the modal coordinates of the tangents (ThetaIntegrator::ModalTangent)
   std::vector<ThetaIntegrator::StepData::Factor> trF_; // per step of the stored flow
   Eigen::VectorXd sdUi_, sdUn_, sc_, svs_, sve_, sr_, vloc_;
   PetscErrorCode  EnsureTrajectory(Vec x);
