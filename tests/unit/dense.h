@@ -2,6 +2,7 @@
 // for the linearised stability problem that shares no code with the library's reduction.
 #pragma once
 
+#include "squeal/integration/theta.h"
 #include "squeal/model/model.h"
 
 #include <Eigen/Dense>
@@ -13,6 +14,18 @@
 #include <vector>
 
 namespace squeal::test {
+
+// One integrator with its state (U, dU) and reactions r, for tests that step several side by side.
+struct Integration {
+  ThetaIntegrator ti{PETSC_COMM_WORLD};
+  Vec             U = nullptr, dU = nullptr;
+  Eigen::VectorXd r;
+  ~Integration()
+  {
+    VecDestroy(&U);
+    VecDestroy(&dU);
+  }
+};
 
 // Full copy of A on every rank.
 inline Eigen::MatrixXd ToDense(Mat A)

@@ -436,16 +436,7 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     SlidingEquilibrium eq;
     ASSERT_EQ(eqs.Solve(model, eq), 0);
     const PetscInt nc = model.contacts.Size(), N = model.Size();
-    struct Integration {
-      ThetaIntegrator ti{PETSC_COMM_WORLD};
-      Vec             U = nullptr, dU = nullptr;
-      Eigen::VectorXd r;
-      ~Integration()
-      {
-        VecDestroy(&U);
-        VecDestroy(&dU);
-      }
-    } run[2]; // fp, ssn
+    test::Integration run[2]; // fp, ssn
     for (int k = 0; k < 2; ++k) {
       ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
       ASSERT_EQ(run[k].ti.SetDenseMax(cse.dense_max), 0);

@@ -46,6 +46,34 @@ bool Rank0()
   return rank == 0;
 }
 
+// Shooting's state x at the converged cycle's start (sr.Z0, held on rank 0), on every rank.
+PetscErrorCode CycleStart(Problem &p, const ShootingResult &sr, Vec *x)
+{
+  PetscInt N, lo, hi;
+  Vec      U0, dU0;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetSize(p.eq.U, &N));
+  std::vector<double> z(2 * N, 0.0);
+  if (Rank0()) z = sr.Z0;
+  PetscCallMPI(MPI_Bcast(z.data(), (int)(2 * N), MPI_DOUBLE, 0, PETSC_COMM_WORLD));
+  PetscCall(VecDuplicate(p.eq.U, &U0));
+  PetscCall(VecDuplicate(p.eq.U, &dU0));
+  PetscCall(VecGetOwnershipRange(U0, &lo, &hi));
+  for (PetscInt i = lo; i < hi; ++i) {
+    PetscCall(VecSetValue(U0, i, z[i], INSERT_VALUES));
+    PetscCall(VecSetValue(dU0, i, z[N + i], INSERT_VALUES));
+  }
+  for (Vec v : {U0, dU0}) {
+    PetscCall(VecAssemblyBegin(v));
+    PetscCall(VecAssemblyEnd(v));
+  }
+  PetscCall(p.sh.CreateState(x));
+  PetscCall(p.sh.Pack(U0, dU0, sr.period, *x));
+  PetscCall(VecDestroy(&U0));
+  PetscCall(VecDestroy(&dU0));
+  PetscFunctionReturn(0);
+}
+
 } // namespace
 
 TEST(Shooting, BothCasesConvergeAndMatchTheTransient)
@@ -558,17 +586,8 @@ TEST(Shooting, BlockTangentFlowEqualsItsColumnsOneByOne)
   dT[0]                  = 0; // one column without the step-size derivative
   MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
   MPI_Bcast(dT.data(), (int)k, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-  std::vector<double> z(2 * N, 0.0);
-  if (Rank0()) z = sr.Z0; // the cycle's start, held on rank 0
-  MPI_Bcast(z.data(), 2 * N, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-  Vec      U0, dU0, x;
-  PetscInt lo, hi;
-  VecDuplicate(chain.eq.U, &U0), VecDuplicate(chain.eq.U, &dU0);
-  VecGetOwnershipRange(U0, &lo, &hi);
-  for (PetscInt i = lo; i < hi; ++i) VecSetValue(U0, i, z[i], INSERT_VALUES), VecSetValue(dU0, i, z[N + i], INSERT_VALUES);
-  VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
-  ASSERT_EQ(chain.sh.CreateState(&x), 0);
-  ASSERT_EQ(chain.sh.Pack(U0, dU0, sr.period, x), 0);
+  Vec x;
+  ASSERT_EQ(CycleStart(chain, sr, &x), 0);
   Eigen::MatrixXd block, one;
   ASSERT_EQ(chain.sh.TangentFlow(x, dZ0, dT, block), 0);
   ASSERT_EQ(block.cols(), k);
@@ -584,7 +603,7 @@ TEST(Shooting, BlockTangentFlowEqualsItsColumnsOneByOne)
   MPI_Allreduce(&mine, &least, 1, MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
   MPI_Allreduce(&mine, &most, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
   EXPECT_EQ(least, most);
-  VecDestroy(&U0), VecDestroy(&dU0), VecDestroy(&x);
+  VecDestroy(&x);
 }
 
 // Above -shoot_jacobian_dense_max, GMRES runs on exact tangent products preconditioned by the LU of
@@ -948,17 +967,8 @@ TEST(Shooting, ModalTangentFlowEqualsTheNodalOne)
   Eigen::RowVectorXd dT  = Eigen::RowVectorXd::Random(k) * sr.period;
   MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
   MPI_Bcast(dT.data(), (int)k, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-  std::vector<double> z(2 * N, 0.0);
-  if (Rank0()) z = sr.Z0;
-  MPI_Bcast(z.data(), 2 * N, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-  Vec      U0, dU0, x;
-  PetscInt lo, hi;
-  VecDuplicate(chain.eq.U, &U0), VecDuplicate(chain.eq.U, &dU0);
-  VecGetOwnershipRange(U0, &lo, &hi);
-  for (PetscInt i = lo; i < hi; ++i) VecSetValue(U0, i, z[i], INSERT_VALUES), VecSetValue(dU0, i, z[N + i], INSERT_VALUES);
-  VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
-  ASSERT_EQ(chain.sh.CreateState(&x), 0);
-  ASSERT_EQ(chain.sh.Pack(U0, dU0, sr.period, x), 0);
+  Vec x;
+  ASSERT_EQ(CycleStart(chain, sr, &x), 0);
   Eigen::MatrixXd nodal[2], modal[2];
   bool            on = true;
   for (const char *mode : {"false", "true"}) {
@@ -981,7 +991,7 @@ TEST(Shooting, ModalTangentFlowEqualsTheNodalOne)
   if (Rank0()) std::printf("modal against nodal tangents: block of %d %.2e, one column %.2e\n", (int)k, block, one);
   EXPECT_LT(block, 1e-12);
   EXPECT_LT(one, 1e-12);
-  VecDestroy(&U0), VecDestroy(&dU0), VecDestroy(&x);
+  VecDestroy(&x);
 }
 
 TEST(Shooting, ModalTangentNeedsADampingThatTheModesDiagonalise)

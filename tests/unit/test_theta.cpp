@@ -322,16 +322,7 @@ TEST(Theta, FixedSizeKernelMatchesRunTimeSizesAndSparseBackEnd)
     // others here (-theta_contact_predict 0, -theta_fp_anderson 0), as the passes are compared.
     for (const char *o : {"-gen_contact_predict", "-theta_contact_predict", "-gen_fp_anderson", "-theta_fp_anderson"})
       ASSERT_EQ(PetscOptionsSetValue(nullptr, o, "0"), 0);
-    struct Integration {
-      ThetaIntegrator ti{PETSC_COMM_WORLD};
-      Vec             U = nullptr, dU = nullptr;
-      Eigen::VectorXd r;
-      ~Integration()
-      {
-        VecDestroy(&U);
-        VecDestroy(&dU);
-      }
-    } run[3]; // fixed sizes, run-time sizes, sparse back end
+    test::Integration run[3]; // fixed sizes, run-time sizes, sparse back end
     const double h = 1e-5;
     for (int k = 0; k < 3; ++k) {
       if (k == 1) {
@@ -453,16 +444,7 @@ TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
   ASSERT_EQ(N, 72);
   ASSERT_EQ(nc, 24);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-hd_h_storage", "dense"), 0);
-  struct Integration {
-    ThetaIntegrator ti{PETSC_COMM_WORLD};
-    Vec             U = nullptr, dU = nullptr;
-    Eigen::VectorXd r;
-    ~Integration()
-    {
-      VecDestroy(&U);
-      VecDestroy(&dU);
-    }
-  } run[2]; // auto (sparse here), dense
+  test::Integration run[2]; // auto (sparse here), dense
   Eigen::VectorXd v0(N);
   for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
   for (PetscInt c = 0; c < nc; c += 2) // every other point starts at its surface's speed
