@@ -394,6 +394,7 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   Md_ = DenseCopy(m.M, n_, comm_);
   Cd_ = DenseCopy(m.C, n_, comm_);
   Kd_ = DenseCopy(m.K, n_, comm_);
+  dense_sum_ok_ = false; // ModalTangent sums them when it is first asked
   PetscCallMPI(MPI_Comm_size(comm_, &size_));
   if (size_ > 1 && (!gather_.Ready() || dense_for_ != model_)) {
     PetscCall(gather_.SetUp(m.F));

@@ -170,6 +170,8 @@ private:
   PetscInt        modal_tangent_ = 0;        // -theta_modal_tangent: 0 auto, 1 false, 2 true
   int             modal_state_   = -1;
   std::uint64_t   modal_sum_     = 0;
+  std::uint64_t   dense_sum_     = 0;        // checksum of Md_, Kd_, Cd_ as SetUpDense copied them
+  bool            dense_sum_ok_  = false;
   PetscReal       modal_h_       = -1, modal_offdiag_ = 0;
   bool            modal_on_      = false;
   Eigen::MatrixXd Phi_, PhiInv_, Htm_, Ym_;
