@@ -1034,4 +1034,10 @@ TEST(Shooting, ModalTangentNeedsADampingThatTheModesDiagonalise)
   ASSERT_EQ(ti2.SetUp(model2, 1e-5), 0);
   ASSERT_EQ(ti2.ModalTangent(&on), 0);
   EXPECT_TRUE(on);
+  // The basis is kept while M, K, C are unchanged (summed once per set-up, not per call): after C
+  // changes in place to the non-diagonalisable one, the next set-up must see it.
+  ASSERT_EQ(MatCopy(model.C, model2.C, SAME_NONZERO_PATTERN), 0);
+  ASSERT_EQ(ti2.SetUp(model2, 1e-5), 0);
+  ASSERT_EQ(ti2.ModalTangent(&on), 0);
+  EXPECT_FALSE(on);
 }
