@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
+#include <random>
 
 using namespace squeal;
 
@@ -497,4 +498,100 @@ TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
   EXPECT_GT(seen[kSlip], 0);
   EXPECT_LT(worst_state, 1e-10);
   EXPECT_LT(worst_tangent, 1e-12);
+}
+
+TEST(Theta, StepTangentMatchesCentralDifferencesOfTheStepOnEveryStatus)
+{
+  // The exact step tangent (statuses held, the closed points' system in 3 n_stick + 2 n_slip
+  // unknowns, planar, or 2 n_stick + n_slip, rectilinear) against central differences of the
+  // nonlinear step itself, on a 24-cell chain whose points open, stick and slip (rotated frames,
+  // a speed of their own each), for both friction laws: one random direction at every 40th of
+  // 1200 steps where no point changes status within the differences.
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
+    ChainParams cp;
+    cp.cells    = 24;
+    cp.cell.V   = 0.75;
+    cp.cell.law = law;
+    Model model;
+    ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+    EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+    SlidingEquilibrium eq;
+    ASSERT_EQ(eqs.Solve(model, eq), 0);
+    // Twice the friction of the equilibrium: the points started at their surface's speed stick.
+    model.contacts.SetFriction(2 * model.contacts.Mu(), model.contacts.V());
+    const PetscInt N = model.Size(), nc = model.contacts.Size();
+    test::Integration run;
+    ASSERT_EQ(run.ti.SetFromOptions(), 0);
+    ASSERT_EQ(run.ti.SetDenseMax(200), 0); // the dense back end also under -theta_dense_max 0
+    ASSERT_EQ(run.ti.SetFixedPoint(1e-15, 100000), 0); // the differences' noise: tol / eps
+    ASSERT_EQ(run.ti.SetUp(model, 2e-6), 0);
+    ASSERT_TRUE(run.ti.Dense());
+    Eigen::VectorXd v0(N);
+    for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
+    for (PetscInt c = 0; c < nc; c += 2) // every other point starts at its surface's speed
+      for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
+    ASSERT_EQ(VecDuplicate(eq.U, &run.U), 0);
+    ASSERT_EQ(VecCopy(eq.U, run.U), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run.dU), 0);
+    SetState(run.dU, v0);
+    run.r.setZero(3 * nc);
+    for (PetscInt c = 0; c < nc; ++c) run.r[3 * c + kN] = eq.N[(size_t)c];
+    Vec U, dU;
+    ASSERT_EQ(VecDuplicate(eq.U, &U), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &dU), 0);
+    std::mt19937                     gen(7);
+    std::normal_distribution<double> nd;
+    std::vector<int>                 base, other;
+    StepInfo                         info;
+    int                              seen[3] = {0, 0, 0}, checked = 0;
+    double                           worst   = 0;
+    for (PetscInt i = 0; i < 1200; ++i) {
+      if (i % 40 != 39 && i >= 4) {
+        ASSERT_EQ(run.ti.Step(run.U, run.dU, run.r, &info), 0);
+        continue;
+      }
+      const Eigen::VectorXd u = test::ToDense(run.U), v = test::ToDense(run.dU), r = run.r;
+      ASSERT_EQ(run.ti.Step(run.U, run.dU, run.r, &info), 0);
+      run.ti.Contact().Status(run.r, base);
+      Eigen::VectorXd vloc;
+      ASSERT_EQ(run.ti.Local(run.dU, vloc), 0);
+      Eigen::VectorXd du(N), dv(N);
+      // A closed point's reaction answers a displacement change over h^2 (the impact law): a
+      // displacement direction of a velocity change's size over one step keeps both in the
+      // statuses' reach.
+      const double sv = v.norm() / std::sqrt((double)N);
+      for (PetscInt j = 0; j < N; ++j) du[j] = 2e-6 * sv * nd(gen), dv[j] = sv * nd(gen);
+      Eigen::MatrixXd tU = du, tdU = dv;
+      ASSERT_EQ(run.ti.StepTangent(run.r, vloc, tU, tdU), 0);
+      const double    eps = 1e-7;
+      Eigen::VectorXd z[2];
+      bool            same = true;
+      for (int s = 0; s < 2; ++s) {
+        const double    e  = s == 0 ? eps : -eps;
+        Eigen::VectorXd rr = r;
+        SetState(U, u + e * du);
+        SetState(dU, v + e * dv);
+        ASSERT_EQ(run.ti.Step(U, dU, rr, &info), 0);
+        run.ti.Contact().Status(rr, other);
+        same = same && other == base;
+        z[s].resize(2 * N);
+        z[s] << test::ToDense(U), test::ToDense(dU);
+      }
+      if (!same) continue;
+      Eigen::VectorXd t(2 * N);
+      t << tU.col(0), tdU.col(0);
+      const Eigen::VectorXd fd = (z[0] - z[1]) / (2 * eps);
+      worst = std::max(worst, (t - fd).norm() / fd.norm());
+      for (int st : base) ++seen[st];
+      ++checked;
+    }
+    PetscPrintf(PETSC_COMM_WORLD, "%s: %d steps, open / stick / slip point-steps %d / %d / %d; tangent against central differences %.2e\n",
+                law == FrictionLaw::Planar ? "planar" : "rectilinear", checked, seen[kOpen], seen[kStick], seen[kSlip], worst);
+    EXPECT_GE(checked, 20);
+    EXPECT_GT(seen[kOpen], 0);
+    EXPECT_GT(seen[kStick], 0);
+    EXPECT_GT(seen[kSlip], 0);
+    EXPECT_LT(worst, 1e-6);
+    VecDestroy(&U), VecDestroy(&dU);
+  }
 }

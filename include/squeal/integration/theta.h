@@ -185,10 +185,17 @@ private:
   AllGather       gather_;
   const Model    *dense_for_ = nullptr;
   Eigen::VectorXd full_U_, full_dU_;
-  Eigen::MatrixXd tvf_, tw_, tg_, trhs_, tA_, tdr_; // StepTangent work arrays
+  Eigen::MatrixXd tvf_, tdr_; // StepTangent work arrays
   std::vector<int> tstatus_;
-  std::vector<Eigen::Index> tclosed_;               // local rows of the closed points
-  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tdrf_;
+  // An unknown of the closed-point tangent system (theta_tangent.cpp): delta r(o..o+2) += g x; its
+  // row d x + h e^T (W delta r)(o..o+2) = -e^T delta w(o..o+2), minus delta g~_n / h if normal.
+  struct TangentUnknown {
+    Eigen::Index o;
+    PetscReal    g[3], e[3], d;
+    bool         normal;
+  };
+  std::vector<TangentUnknown> tunk_;
+  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tdrf_, tWG_;
   Eigen::VectorXd tq_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
   PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,
