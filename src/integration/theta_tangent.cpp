@@ -38,6 +38,58 @@ PetscErrorCode ThetaIntegrator::StepTangentSource(const Eigen::VectorXd &Ui, con
   PetscFunctionReturn(0);
 }
 
+void ThetaIntegrator::TangentUnknowns(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end)
+{
+  const ContactSet &cs = model_->contacts;
+  local_.Status(r, tstatus_);
+  const bool      rect = cs.law == FrictionLaw::Rectilinear;
+  const PetscReal mu   = cs.Mu();
+  tunk_.clear();
+  for (PetscInt c = 0; c < nc_; ++c) {
+    if (tstatus_[c] == kOpen) continue;
+    const Eigen::Index o = 3 * c;
+    TangentUnknown     un{o, {0, 0, 0}, {0, 0, 0}, 0, true};
+    un.g[kN] = un.e[kN] = 1;
+    bool            stick_rows = tstatus_[c] == kStick;
+    Eigen::Vector2d sp(0, 0);
+    PetscReal       alpha = 0;
+    if (!stick_rows && rect) un.g[kT] = -mu * (r[o + kT] > 0 ? -1.0 : 1.0); // r_t = -mu r_n sign(s_t)
+    else if (!stick_rows) {
+      // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
+      const Eigen::Vector2d sv(v_end[o + kT] - cs.Speed(c), v_end[o + kB]);
+      const PetscReal       ns = sv.norm();
+      if (!(ns > 1e-14 * (std::abs(cs.Speed(c)) + 1.0))) stick_rows = true; // slipping at zero speed: the stick rows
+      else {
+        const Eigen::Vector2d sh = sv / ns;
+        un.g[kT] = -mu * sh[0], un.g[kB] = -mu * sh[1];
+        sp       = Eigen::Vector2d(-sh[1], sh[0]);
+        alpha    = mu * r[o + kN] / ns;
+      }
+    }
+    tunk_.push_back(un);
+    if (stick_rows) {
+      for (int j : {kT, kB}) { // delta v_j = 0 (rectilinear: delta r_b = 0, no unknown)
+        if (rect && j == kB) continue;
+        TangentUnknown s{o, {0, 0, 0}, {0, 0, 0}, 0, false};
+        s.g[j] = s.e[j] = 1;
+        tunk_.push_back(s);
+      }
+    } else if (!rect) {
+      TangentUnknown s{o, {0, 0, 0}, {0, 0, 0}, 1, false};
+      s.g[kT] = sp[0], s.g[kB] = sp[1];
+      s.e[kT] = alpha * sp[0], s.e[kB] = alpha * sp[1];
+      tunk_.push_back(s);
+    }
+  }
+}
+
+Eigen::Index ThetaIntegrator::TangentSystemSize(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end)
+{
+  if (nc_ == 0) return 0;
+  TangentUnknowns(r, v_end);
+  return (Eigen::Index)tunk_.size();
+}
+
 PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step,
                                                 const Eigen::RowVectorXd *dh, Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU)
 {
@@ -56,7 +108,6 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
   }
   if (dh) tvf_.noalias() += *step->c * *dh;
   if (nc_ > 0) {
-    local_.Status(r, tstatus_);
     // The closed points' reaction changes in the fewest unknowns. Open points keep delta r = 0
     // and drop out. A sliding point's reaction along its slip direction s^ is -mu r_n, so with
     // P = (mu r_n / |s|) (I - s^ s^T) = alpha s_p s_p^T (s_p perpendicular to s^) its two slip
@@ -66,45 +117,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
     // 175-point pad, mostly sliding, 350 instead of 525 unknowns, 0.3 of the LU's cost.
     // Unknown q: delta r of its point (rows o..o+2) += g_q x_q; its row:
     // d_q x_q + h e_q^T (W delta r)_point = -e_q^T delta w_f (- delta g~_n / h on a normal row).
-    const bool      rect = cs.law == FrictionLaw::Rectilinear;
-    const PetscReal mu   = cs.Mu();
-    tunk_.clear();
-    for (PetscInt c = 0; c < nc_; ++c) {
-      if (tstatus_[c] == kOpen) continue;
-      const Eigen::Index o = 3 * c;
-      TangentUnknown     un{o, {0, 0, 0}, {0, 0, 0}, 0, true};
-      un.g[kN] = un.e[kN] = 1;
-      bool            stick_rows = tstatus_[c] == kStick;
-      Eigen::Vector2d sp(0, 0);
-      PetscReal       alpha = 0;
-      if (!stick_rows && rect) un.g[kT] = -mu * (r[o + kT] > 0 ? -1.0 : 1.0); // r_t = -mu r_n sign(s_t)
-      else if (!stick_rows) {
-        // Slip, r_T = -mu r_n s/|s| with s = v_T - V_c.
-        const Eigen::Vector2d sv(v_end[o + kT] - cs.Speed(c), v_end[o + kB]);
-        const PetscReal       ns = sv.norm();
-        if (!(ns > 1e-14 * (std::abs(cs.Speed(c)) + 1.0))) stick_rows = true; // slipping at zero speed: the stick rows
-        else {
-          const Eigen::Vector2d sh = sv / ns;
-          un.g[kT] = -mu * sh[0], un.g[kB] = -mu * sh[1];
-          sp       = Eigen::Vector2d(-sh[1], sh[0]);
-          alpha    = mu * r[o + kN] / ns;
-        }
-      }
-      tunk_.push_back(un);
-      if (stick_rows) {
-        for (int j : {kT, kB}) { // delta v_j = 0 (rectilinear: delta r_b = 0, no unknown)
-          if (rect && j == kB) continue;
-          TangentUnknown s{o, {0, 0, 0}, {0, 0, 0}, 0, false};
-          s.g[j] = s.e[j] = 1;
-          tunk_.push_back(s);
-        }
-      } else if (!rect) {
-        TangentUnknown s{o, {0, 0, 0}, {0, 0, 0}, 1, false};
-        s.g[kT] = sp[0], s.g[kB] = sp[1];
-        s.e[kT] = alpha * sp[0], s.e[kB] = alpha * sp[1];
-        tunk_.push_back(s);
-      }
-    }
+    TangentUnknowns(r, v_end);
     const Eigen::Index m = (Eigen::Index)tunk_.size();
     if (m > 0) {
       // delta w_f = H^T delta v_f and delta g~ = H^T (delta U + h (1 - theta) delta dU) in one

@@ -102,6 +102,9 @@ public:
   };
   PetscErrorCode StepTangent(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData &step, const Eigen::RowVectorXd &dh,
                              Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
+  // The order of that step's closed-point system (its factor holds the square of it): 3 per
+  // sticking point, 2 per sliding one (1 rectilinear), 0 per open one.
+  Eigen::Index TangentSystemSize(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end);
   // c = d dU^{i+1} / dh at fixed (U^i, dU^i) and r: A^-1 [B' dU^i - K U^i + F - A' dU^{i+1}] + Y r, with
   // A' = theta C + 2 h theta^2 K and B' = -(1 - theta) C - 2 h theta (1 - theta) K. Dense back end.
   PetscErrorCode StepTangentSource(const Eigen::VectorXd &Ui, const Eigen::VectorXd &dUi, const Eigen::VectorXd &dUn,
@@ -195,6 +198,7 @@ private:
     bool         normal;
   };
   std::vector<TangentUnknown> tunk_;
+  void TangentUnknowns(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end); // tunk_ of a step
   Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tdrf_, tWG_;
   Eigen::VectorXd tq_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h

@@ -237,6 +237,7 @@ private:
   Eigen::MatrixXd trU_, trdU_, trR_, trV_, trC_;
   Eigen::MatrixXd trdUm_, trCm_; // trdU_ and trC_ in the modal coordinates of the tangents (ThetaIntegrator::ModalTangent)
   std::vector<ThetaIntegrator::StepData::Factor> trF_; // per step of the stored flow
+  double trF_mb_ = 0;                                   // their memory when all are kept (MB)
   Eigen::VectorXd sdUi_, sdUn_, sc_, svs_, sve_, sr_, vloc_;
   PetscErrorCode  EnsureTrajectory(Vec x);
   PetscErrorCode  Full(Vec v, Eigen::Ref<Eigen::VectorXd> out);
