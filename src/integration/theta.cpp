@@ -218,7 +218,7 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
   PetscCall(PetscOptionsEList("-modal_tangent",
                               "Dense back end: shooting's and Floquet's step tangents in the modal coordinates of (K, M), where C is "
                               "diagonal too (O(n_c N) a column and step instead of O(N^2)); auto: when C is diagonal there and the "
-                              "products cost less than 0.6 x the nodal ones",
+                              "products cost less than 0.8 x the nodal ones",
                               "ThetaIntegrator::ModalTangent", modal, 3, modal[modal_tangent_], &modal_tangent_, nullptr));
   const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
   PetscCall(PetscOptionsEList("-parallel_solver",
@@ -419,8 +419,10 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   // the tangent's products on the reduced 2625-DOF pad (3 n_c = 525, N = 562).
   const PetscReal nnz = (PetscReal)(Ht_.array() != 0.0).count();
   ht_sparse_          = nc_ > 0 && (h_storage_ == 2 || (h_storage_ == 0 && n_ >= 64 && nnz <= 0.1 * (PetscReal)Ht_.size()));
-  if (ht_sparse_) Hts_ = Ht_.sparseView(0.0, 0.0);
-  else Hts_.resize(0, 0);
+  Htn_.resize(nc_, n_);
+  for (PetscInt c = 0; c < nc_; ++c) Htn_.row(c) = Ht_.row(3 * c + kN);
+  if (ht_sparse_) Hts_ = Ht_.sparseView(0.0, 0.0), Htns_ = Htn_.sparseView(0.0, 0.0), Htn_.resize(0, 0);
+  else Hts_.resize(0, 0), Htns_.resize(0, 0);
   P1_ = llt.solve(B);
   P2_ = -h * llt.solve(Kd_);
   p3_ = h * llt.solve(Fd_);

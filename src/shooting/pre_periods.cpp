@@ -236,8 +236,8 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
     PetscCall(VecCopy(U1_, U));
     PetscCall(VecCopy(dU1_, dU));
     if (mon)
-      PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s\n", k, (double)e,
-                            (double)(T + dt)));
+      PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s, %.1f contact iterations a step\n", k,
+                            (double)e, (double)(T + dt), (double)flow_passes_ / steps));
     if (sec.Measured(Tm, loops) && !resume) pre_measured_ = Tm;
     // Not on a restart: the motion has returned within -shoot_pre_tol at T with its period measured,
     // and so close to the cycle the section's loop count reads noise (the half brake's interface-

@@ -50,10 +50,12 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
     ti_->Contact().Status(r, prev);
   }
   const PetscInt run = flow_stop_ > 0 ? std::min(flow_stop_, steps) : steps;
+  flow_passes_       = 0;
   for (PetscInt i = 0; i < run; ++i) {
     // SIGINT/SIGTERM within a period (one flow: minutes at FE scale with many steps).
     if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a period integration"));
     PetscCall(ti_->Step(U1, dU1, r, &info));
+    flow_passes_ += info.contact.iterations;
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
     if (on_step_) PetscCall(on_step_(i, U1, dU1, r));

@@ -980,11 +980,12 @@ TEST(Shooting, ModalTangentFlowEqualsTheNodalOne)
     ASSERT_EQ(chain.ti.ModalTangent(&on), 0);
     EXPECT_EQ(on, mode[0] == 't');
   }
-  // auto: on 12 DOFs with 3 n_c = 12 the modal products cost no less than 0.6 of the nodal ones.
+  // auto: on 12 DOFs with 3 n_c = 12 and a dense H^T the modal products, (2 * 12 + 4) * 12 + 24 =
+  // 360 multiply-adds a column and step, cost 0.58 of the nodal 2 * 144 + 144 + (12 + 4) * 12 = 624.
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_modal_tangent", "auto"), 0);
   ASSERT_EQ(chain.ti.SetFromOptions(), 0);
   ASSERT_EQ(chain.ti.ModalTangent(&on), 0);
-  EXPECT_FALSE(on);
+  EXPECT_TRUE(on);
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-theta_modal_tangent"), 0);
   ASSERT_EQ(chain.ti.SetFromOptions(), 0);
   const double block = (modal[0] - nodal[0]).norm() / nodal[0].norm(), one = (modal[1] - nodal[1]).norm() / nodal[1].norm();

@@ -165,6 +165,10 @@ private:
   // dense back end
   Eigen::MatrixXd P1_, P2_, Y_, Ht_, Md_, Cd_, Kd_;
   SparseRowMatrix Hts_;                      // H^T's non-zeros, when ht_sparse_
+  // H^T's normal rows (n_c x N; by their non-zeros when ht_sparse_): the tangent's gap change needs
+  // only those, a third of H^T's products.
+  Eigen::MatrixXd Htn_;
+  SparseRowMatrix Htns_;
   bool            ht_sparse_ = false;
   PetscInt        h_storage_ = 0;            // -theta_h_storage: 0 auto, 1 dense, 2 sparse
   // ModalTangent: the basis (for the matrices with checksum modal_sum_), its state (-1 undecided,
@@ -177,7 +181,7 @@ private:
   bool            dense_sum_ok_  = false;
   PetscReal       modal_h_       = -1, modal_offdiag_ = 0;
   bool            modal_on_      = false;
-  Eigen::MatrixXd Phi_, PhiInv_, Htm_, Ym_;
+  Eigen::MatrixXd Phi_, PhiInv_, Htm_, Htmn_, Ym_; // Htmn_: Htm_'s normal rows
   Eigen::VectorXd mk_, mc_, p1m_, p2m_;
   std::string     modal_why_;
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
@@ -199,7 +203,7 @@ private:
   };
   std::vector<TangentUnknown> tunk_;
   void TangentUnknowns(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end); // tunk_ of a step
-  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tdrf_, tWG_;
+  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tGn_, tdrf_, tWG_;
   Eigen::VectorXd tq_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
   PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,

@@ -266,6 +266,7 @@ private:
   // Bisection flows of the phase pieces stop after flow_stop_ steps; their steps, in partial_steps_,
   // count as period integrations pro rata.
   PetscInt        flow_stop_ = -1, partial_steps_ = 0;
+  PetscInt        flow_passes_ = 0; // contact iterations of the last Flow, summed over its steps
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
   // The values SetUpFor chose for steps, pre_periods, pre_tol (PETSC_DECIDE given), chosen again for
   // the next model unless changed since; and whether they were chosen (reported once per solve).
