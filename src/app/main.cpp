@@ -1,4 +1,5 @@
 #include "squeal/app/app.h"
+#include "squeal/core/blas_core.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/interrupt.h"
 
@@ -8,6 +9,9 @@
 
 int main(int argc, char **argv)
 {
+  // First, before MPI or PETSc start: OpenBLAS's generic kernels on a CPU it does not know
+  // (core/blas_core.cpp) cost 1.7x on the reduction and the eigensolvers.
+  squeal::RestartWithMatchingBlasKernels(argv);
   // Started without mpiexec, Open MPI's MPI_Init launches a helper daemon (orted) for dynamic
   // process support that squeal never uses; the wait for it was 0.2-0.3 s of a 0.6 s 3-DOF run.
   // An isolated singleton skips it. Only when not under a launcher, and never over the user's own
