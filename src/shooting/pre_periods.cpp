@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <utility>
 #include <vector>
@@ -39,7 +40,7 @@ public:
     for (VecH *v : {&ZrdU, &GrdU, &mdU, &pdU, &CdU[0], &CdU[1], &CdU[2], &CdU[3]}) PetscCall(VecDuplicate(dU0, v->out()));
     PetscFunctionReturn(0);
   }
-  void           SetStep(PetscReal h) { sec.h = h; }
+  void           SetStep(PetscReal T, PetscInt steps) { sec.h = T / steps, steps_ = steps; }
   PetscErrorCode Step(Vec U1, Vec dU1, const Eigen::VectorXd &rr); // after every step of the flow
   // When a period was measured since the last call: Tm, the last one once it agrees with the one
   // before (else 0), and its loop count (only when Tm > 0); true when Tm > 0.
@@ -201,6 +202,27 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   constexpr PetscReal kReach = 0.05;
   VecH                U, dU;
   Eigen::VectorXd     r;
+  // The pre-periods run at -shoot_pre_steps a period until they return within the tolerance, then
+  // on at -shoot_steps until they return within it again (3-4 periods on the pads), so that Newton
+  // starts from a return of the flow whose cycle it solves for: on the half brake a start a few
+  // 1e-3 of a period off was enough to leave Newton's basin (docs/records.md). A restart after a
+  // failed Newton runs at -shoot_steps throughout. Flow and SetUpAt read `steps`: swapped for this
+  // frame (also on an error), with the step size set up again on each side of the swap.
+  struct StepsSwap {
+    Shooting &s;
+    PetscInt  kept;
+    StepsSwap(Shooting &sh, PetscInt n) : s(sh), kept(sh.steps)
+    {
+      if (n != kept) s.steps = n, s.T_setup_ = -1;
+    }
+    bool Coarse() const { return s.steps != kept; }
+    void Restore()
+    {
+      if (s.steps != kept) s.steps = kept, s.T_setup_ = -1;
+    }
+    ~StepsSwap() { Restore(); }
+  } swap{*this, resume || pre_steps <= 0 ? steps : pre_steps};
+  PetscInt            coarse_periods = 0; // run at -shoot_pre_steps, once the flow went on at -shoot_steps
   PetscBool           mon = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
   mon = (PetscBool)(mon || monitor);
@@ -227,7 +249,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   bool                   stagnated = false;
   while (k < pre_periods) {
     if (interruptible) PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
-    sec.SetStep(T / steps);
+    sec.SetStep(T, steps);
     PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
     ++k;
     PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
@@ -260,7 +282,12 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
     // periods) and settle elsewhere, and a single return can still read one loop of a cycle that
     // closes after two (there, stopping at the first return near T sent Newton to the unstable
     // one-loop cycle at 0.0096261 s instead of the attracting one at 0.0193433 s).
-    if (e < tol && (Tm > 0 || resume)) break;
+    if (e < tol && (Tm > 0 || resume)) {
+      if (!swap.Coarse()) break;
+      coarse_periods = k;
+      swap.Restore();
+      continue;
+    }
     // A flow on its way to a cycle halves its return distance in far fewer than W periods (the pads'
     // flows reach 0.02 in 22-38); one that does not return wanders at the same distances.
     if (W > 0) {
@@ -280,11 +307,14 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
       }
     }
   }
+  char coarse[96] = "";
+  if (swap.Coarse() || coarse_periods > 0)
+    std::snprintf(coarse, sizeof coarse, "; the first %" PetscInt_FMT " at -shoot_pre_steps %" PetscInt_FMT, swap.Coarse() ? k : coarse_periods, pre_steps);
   if (pre_done_ == 0)
     PetscCall(PetscPrintf(comm_,
                           "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
-                          ", -shoot_pre_tol %g): return distance %.2e, T = %.9f s\n",
-                          k, pre_periods, (double)tol, (double)e, (double)T));
+                          ", -shoot_pre_tol %g%s): return distance %.2e, T = %.9f s\n",
+                          k, pre_periods, (double)tol, coarse, (double)e, (double)T));
   else
     PetscCall(PetscPrintf(comm_,
                           "shooting: start after %" PetscInt_FMT " more period(s) of the flow (up to %" PetscInt_FMT

@@ -768,6 +768,13 @@ TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
   Shooting::DefaultPrePeriods(562, &pp, &pt);
   EXPECT_EQ(pp, 200);
   EXPECT_EQ(pt, 0.02);
+  // The pre-periods' flow: every step on the models without default pre-periods, half above.
+  EXPECT_EQ(Shooting::DefaultPreSteps(3, 1000), 1000);
+  EXPECT_EQ(Shooting::DefaultPreSteps(180, 200), 200);
+  EXPECT_EQ(Shooting::DefaultPreSteps(562, 200), 100);
+  EXPECT_EQ(Shooting::DefaultPreSteps(562, 150), 100); // never below 100 a period (3.3e-4 in the period)
+  EXPECT_NEAR(period_error(100), 3.3e-4, 0.1e-4);
+  EXPECT_LT(period_error(100), 0.02 / 50); // far inside the pre-periods' return tolerance
 
   ThreeDofParams p;
   p.V = 0.75;
@@ -793,6 +800,38 @@ TEST(Shooting, DefaultsFollowTheModelAndLeaveTheThreeDofCasesAsTheyWere)
   PetscReal scale = 0;
   for (PetscReal z : given.Z0) scale = std::max(scale, std::abs(z));
   for (size_t i = 0; i < given.Z0.size(); ++i) EXPECT_NEAR(dflt.Z0[i], given.Z0[i], 1e-13 * scale) << i;
+}
+
+// -shoot_pre_steps: the pre-periods run coarse until they return, then on the fine flow until they
+// return again, so Newton starts from the fine flow. Case 1 at mu = 5 (impacts, two loops, the
+// period moved beyond the bracket on the way): the coarse flow at 250 steps a period must measure
+// the same period and lead Newton to the same cycle within the step's error. Not to the same
+// discrete orbit: the discrete flow has periodic orbits whose impacts fall a fraction of a step
+// apart, and Newton from the two starts converges to two of them (periods 3.9e-6 apart, the
+// trapezoidal rule's own period error at 1000 steps being 3.3e-6; peak-to-peak 2e-4 apart).
+TEST(Shooting, CoarsePrePeriodsEndOnTheFineFlowAndReachTheCycleWithinTheStepError)
+{
+  ThreeDofParams p; // case 1
+  p.mu = 5;
+  ShootingResult fine, coarse;
+  for (PetscInt ps : {1000, 250}) {
+    Problem pr(p);
+    ASSERT_TRUE(pr.est.found);
+    pr.sh.Floquet().compute = PETSC_FALSE;
+    pr.sh.pre_periods       = 100;
+    pr.sh.pre_steps         = ps;
+    ShootingResult &sr      = ps == 1000 ? fine : coarse;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, sr), 0) << sr.reason;
+    EXPECT_TRUE(sr.converged);
+    EXPECT_EQ(pr.sh.steps, 1000); // put back after the pre-periods
+  }
+  EXPECT_TRUE(coarse.bracket_recentred);
+  EXPECT_NEAR(coarse.pre_measured_period / fine.pre_measured_period, 1.0, 1e-2);
+  EXPECT_NEAR(coarse.period / fine.period, 1.0, 2e-5);
+  // Z0 lies on the cycle at a phase the start sets: the cycles compared by period and extent.
+  if (!Rank0()) return;
+  ASSERT_EQ(coarse.peak_to_peak.size(), fine.peak_to_peak.size());
+  for (size_t i = 0; i < fine.peak_to_peak.size(); ++i) EXPECT_NEAR(coarse.peak_to_peak[i] / fine.peak_to_peak[i], 1.0, 1e-3) << i;
 }
 
 // Issue 20 item 4: case 1 at mu = 5 settles on a cycle of 2.14 T_lin (two loops per period, their

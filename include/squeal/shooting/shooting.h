@@ -97,6 +97,7 @@ public:
   // steps per period, and the pre-periods with their tolerance (shooting.cpp says why).
   static PetscInt DefaultSteps(PetscInt N);
   static void     DefaultPrePeriods(PetscInt N, PetscInt *pre_periods, PetscReal *pre_tol);
+  static PetscInt DefaultPreSteps(PetscInt N, PetscInt steps);
   // Solves from (U0, dU0, T0). Not converging is reported in res (reason, best iterate), and
   // returned as an error after res is complete, so that the caller can write it first.
   PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, ThetaIntegrator &ti, Vec U0, Vec dU0, PetscReal T0,
@@ -179,6 +180,10 @@ public:
   // -shoot_pre_periods: at most this many periods of flow before Newton (PETSC_DECIDE until SetUpFor
   // chooses from the model: DefaultPrePeriods).
   PetscInt  pre_periods      = PETSC_DECIDE;
+  // -shoot_pre_steps: steps per period of the pre-periods' flow (PETSC_DECIDE: DefaultPreSteps). They
+  // only bring the start within -shoot_pre_tol of the cycle, far coarser than the discretisation
+  // error of half the steps, so above 200 DOFs they run at half of -shoot_steps.
+  PetscInt  pre_steps        = PETSC_DECIDE;
   // -shoot_pre_tol: ... stopping once the return distance is below (PETSC_DECIDE: DefaultPrePeriods).
   // On the 2625-DOF pad 0.5 / 0.35 / 0.2 / 0.1 / 0.02 take 2 / 3 / 4 / 7 / 24 periods, then 8 / 6 / 6 /
   // 6 / 5 Newton iterations; on the 31119-DOF pad 0.2 (6 periods) leaves Newton wandering at
@@ -270,7 +275,7 @@ private:
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
   // The values SetUpFor chose for steps, pre_periods, pre_tol (PETSC_DECIDE given), chosen again for
   // the next model unless changed since; and whether they were chosen (reported once per solve).
-  PetscInt        auto_steps_ = -2, auto_pre_ = -2;
+  PetscInt        auto_steps_ = -2, auto_pre_ = -2, auto_pre_steps_ = -2;
   PetscReal       auto_pre_tol_ = -2;
   PetscInt        auto_reported_ = -1;
   PetscErrorCode  ChooseDefaults(); // in SetUpFor, once N_ is known
