@@ -289,8 +289,10 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
       continue;
     }
     // A flow on its way to a cycle halves its return distance in far fewer than W periods (the pads'
-    // flows reach 0.02 in 22-38); one that does not return wanders at the same distances.
-    if (W > 0) {
+    // flows reach 0.02 in 22-38); one that does not return wanders at the same distances. Not after
+    // a coarse return: the fine flow hovers near the tolerance (the half brake: 30 periods) and
+    // has returned already, which -analyses auto must not read as a flow that does not.
+    if (W > 0 && coarse_periods == 0) {
       PetscCallCXX(hist.push_back(e));
       const size_t n = hist.size(), w = (size_t)W;
       if (n >= 2 * w) {
@@ -320,7 +322,9 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
                           "shooting: start after %" PetscInt_FMT " more period(s) of the flow (up to %" PetscInt_FMT
                           ", return distance tolerance %g): return distance %.2e, T = %.9f s\n",
                           k, pre_periods, (double)tol, (double)e, (double)T));
-  pre_done_ += k, pre_T_ = T, pre_e_ = e, pre_returned_ = e < tol && (Tm > 0 || resume);
+  // Returned: on the fine flow, or on the coarse one when -shoot_pre_periods ran out before the fine
+  // flow came back within the tolerance (Newton then starts from the fine flow's last state).
+  pre_done_ += k, pre_T_ = T, pre_e_ = e, pre_returned_ = (e < tol && (Tm > 0 || resume)) || coarse_periods > 0;
   pre_stagnated_ = stagnated, pre_best_recent_ = best_recent, pre_best_before_ = best_before;
   PetscCall(PetscLogEventEnd(shoot_ev::pre, 0, 0, 0, 0));
   PetscCall(Pack(U, dU, T, x));

@@ -78,8 +78,10 @@ PetscErrorCode Shooting::SetFromOptions()
                             "N = 200 DOFs, at most 200 above)",
                             "Shooting", pre_periods, &pre_periods, nullptr));
   PetscCall(PetscOptionsInt("-pre_steps",
-                            "Steps per period of the pre-periods' flow (default from the model: half of -shoot_steps, at least 100, "
-                            "above N = 200 DOFs, else -shoot_steps; restarts after a failed Newton use -shoot_steps)",
+                            "Steps per period of the pre-periods' flow until it returns within -shoot_pre_tol; then -shoot_steps until "
+                            "it returns again, Newton starting from there (default from the model: above N = 200 DOFs half of "
+                            "-shoot_steps, at least 100 and at most -shoot_steps; else -shoot_steps; restarts after a failed Newton "
+                            "use -shoot_steps)",
                             "Shooting", pre_steps, &pre_steps, nullptr));
   PetscCall(PetscOptionsBool("-ew",
                              "GMRES on tangent products: inexact Newton, with Eisenstat-Walker Krylov tolerances "

@@ -180,9 +180,10 @@ public:
   // -shoot_pre_periods: at most this many periods of flow before Newton (PETSC_DECIDE until SetUpFor
   // chooses from the model: DefaultPrePeriods).
   PetscInt  pre_periods      = PETSC_DECIDE;
-  // -shoot_pre_steps: steps per period of the pre-periods' flow (PETSC_DECIDE: DefaultPreSteps). They
-  // only bring the start within -shoot_pre_tol of the cycle, far coarser than the discretisation
-  // error of half the steps, so above 200 DOFs they run at half of -shoot_steps.
+  // -shoot_pre_steps: steps per period of the pre-periods' flow until its first return within
+  // -shoot_pre_tol (PETSC_DECIDE: DefaultPreSteps), then -shoot_steps to the next return; both phases
+  // count in -shoot_pre_periods. The tolerance is far coarser than half the steps' discretisation
+  // error, so above 200 DOFs they run at half of -shoot_steps (at least 100, at most -shoot_steps).
   PetscInt  pre_steps        = PETSC_DECIDE;
   // -shoot_pre_tol: ... stopping once the return distance is below (PETSC_DECIDE: DefaultPrePeriods).
   // On the 2625-DOF pad 0.5 / 0.35 / 0.2 / 0.1 / 0.02 take 2 / 3 / 4 / 7 / 24 periods, then 8 / 6 / 6 /
@@ -273,7 +274,7 @@ private:
   PetscInt        flow_stop_ = -1, partial_steps_ = 0;
   PetscInt        flow_passes_ = 0; // contact iterations of the last Flow, summed over its steps
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
-  // The values SetUpFor chose for steps, pre_periods, pre_tol (PETSC_DECIDE given), chosen again for
+  // The values SetUpFor chose for steps, pre_periods, pre_steps, pre_tol (PETSC_DECIDE given), chosen again for
   // the next model unless changed since; and whether they were chosen (reported once per solve).
   PetscInt        auto_steps_ = -2, auto_pre_ = -2, auto_pre_steps_ = -2;
   PetscReal       auto_pre_tol_ = -2;
