@@ -309,9 +309,10 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
       }
     }
   }
+  const PetscInt ncoarse = swap.Coarse() ? k : coarse_periods; // a flow that never returned stayed coarse
+  pre_coarse_ += ncoarse;
   char coarse[96] = "";
-  if (swap.Coarse() || coarse_periods > 0)
-    std::snprintf(coarse, sizeof coarse, "; the first %" PetscInt_FMT " at -shoot_pre_steps %" PetscInt_FMT, swap.Coarse() ? k : coarse_periods, pre_steps);
+  if (ncoarse > 0) std::snprintf(coarse, sizeof coarse, "; the first %" PetscInt_FMT " at -shoot_pre_steps %" PetscInt_FMT, ncoarse, pre_steps);
   if (pre_done_ == 0)
     PetscCall(PetscPrintf(comm_,
                           "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT

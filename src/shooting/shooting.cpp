@@ -416,7 +416,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
-  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = tangent_columns_ = recycled_columns_ = 0;
+  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = pre_coarse_ = tangent_columns_ = recycled_columns_ = 0;
   pre_T_       = T0;
   pre_measured_ = 0, recentred_ = false;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
@@ -439,6 +439,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       res.reason              = "Newton not started (after_pre_periods)";
       res.period              = T;
       res.pre_periods         = pre_done_;
+      res.pre_coarse_periods  = pre_coarse_;
       res.pre_period          = pre_T_;
       res.pre_measured_period = pre_measured_;
       PetscFunctionReturn(0);
@@ -495,6 +496,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.recycled_columns    = recycled_columns_;
   res.setups              = setups_;
   res.pre_periods         = pre_done_;
+  res.pre_coarse_periods  = pre_coarse_;
   res.pre_period          = pre_T_;
   res.pre_measured_period = pre_measured_;
   res.bracket_centre      = T0_;
@@ -680,6 +682,7 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting", "reason", res.reason.c_str()));
   PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
   PetscCall(out.WriteAttribute("/shooting", "pre_periods", res.pre_periods));
+  PetscCall(out.WriteAttribute("/shooting", "pre_coarse_periods", res.pre_coarse_periods));
   PetscCall(out.WriteAttribute("/shooting", "pre_retries", res.pre_retries));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
   if (!res.floquet.empty()) {

@@ -825,6 +825,10 @@ TEST(Shooting, CoarsePrePeriodsEndOnTheFineFlowAndReachTheCycleWithinTheStepErro
     EXPECT_TRUE(sr.converged);
     EXPECT_EQ(pr.sh.steps, 1000); // put back after the pre-periods
   }
+  // The coarse flow ran, and the pre-periods ended on the fine one.
+  EXPECT_EQ(fine.pre_coarse_periods, 0);
+  EXPECT_GT(coarse.pre_coarse_periods, 0);
+  EXPECT_LT(coarse.pre_coarse_periods, coarse.pre_periods);
   EXPECT_TRUE(coarse.bracket_recentred);
   EXPECT_NEAR(coarse.pre_measured_period / fine.pre_measured_period, 1.0, 1e-2);
   EXPECT_NEAR(coarse.period / fine.period, 1.0, 2e-5);

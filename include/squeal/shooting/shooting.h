@@ -57,6 +57,7 @@ struct ShootingResult {
   // -shoot_pre_periods: periods of flow run before Newton, and the period-corrected T they ended with.
   PetscInt                             pre_periods = 0;
   PetscReal                            pre_period  = 0;
+  PetscInt                             pre_coarse_periods = 0; // ... of them at -shoot_pre_steps
   // -shoot_pre_retries taken: Newton restarted after more pre-periods to a tighter return distance.
   PetscInt                             pre_retries = 0;
   // The period of the pre-periods' motion, from its returns to a Poincare section (0: no two
@@ -274,6 +275,7 @@ private:
   PetscInt        flow_stop_ = -1, partial_steps_ = 0;
   PetscInt        flow_passes_ = 0; // contact iterations of the last Flow, summed over its steps
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
+  PetscInt        pre_coarse_ = 0; // ... of them at -shoot_pre_steps
   // The values SetUpFor chose for steps, pre_periods, pre_steps, pre_tol (PETSC_DECIDE given), chosen again for
   // the next model unless changed since; and whether they were chosen (reported once per solve).
   PetscInt        auto_steps_ = -2, auto_pre_ = -2, auto_pre_steps_ = -2;
