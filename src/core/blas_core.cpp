@@ -4,8 +4,8 @@
 // machine's speed: the Craig-Bampton reduction and stability analysis of the 31119-DOF pad took
 // 43.8 s with them and 25.1 s with the AVX-512 kernels (docs/records.md). The choice is made before
 // main runs and cannot be redone in the process, so the program starts again with it
-// (OPENBLAS_CORETYPE, OpenBLAS's documented override). squeal's own dense algebra (Eigen) is not
-// affected either way.
+// (OPENBLAS_CORETYPE, OpenBLAS's documented override). squeal's own dense algebra is Eigen's, except
+// the block products of the step tangents and the Floquet basis (core/dense_blas.h), which go to BLAS.
 #include "squeal/core/blas_core.h"
 
 #include <dlfcn.h>

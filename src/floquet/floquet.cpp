@@ -1,4 +1,5 @@
 #include "squeal/floquet/floquet.h"
+#include "squeal/core/dense_blas.h"
 #include "squeal/core/errors.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/interrupt.h"
@@ -732,8 +733,9 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
     const Index k = (j + 1) * b;
     // Block Gram-Schmidt, twice (one pass loses orthogonality on the clustered multipliers).
     for (int pass = 0; pass < 2; ++pass) {
-      C.noalias() = V.leftCols(k).transpose() * W;
-      W.noalias() -= V.leftCols(k) * C;
+      C.resize(k, b);
+      Gemm(V.leftCols(k), true, W, C);
+      Gemm(V.leftCols(k), false, C, W, -1.0, 1.0);
       H.block(0, j * b, k, b) += C;
     }
     Eigen::HouseholderQR<MatrixXd> qr(W);

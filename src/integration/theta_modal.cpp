@@ -103,7 +103,7 @@ PetscErrorCode ThetaIntegrator::ModalTangent(bool *on)
     else Htm_ = Ht_ * Phi_;
     Htmn_.resize(nc_, n_);
     for (PetscInt c = 0; c < nc_; ++c) Htmn_.row(c) = Htm_.row(3 * c + kN);
-    Ym_      = a.inverse().matrix().asDiagonal() * Htm_.transpose();
+    ainvm_   = a.inverse().matrix();
     modal_h_ = h_;
   }
   modal_why_.clear();

@@ -6,6 +6,7 @@
 #include "squeal/shooting/shooting.h"
 #include "internal.h"
 #include "squeal/integration/monodromy.h"
+#include "squeal/core/dense_blas.h"
 #include "squeal/core/interrupt.h"
 
 #include <algorithm>
@@ -199,7 +200,11 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   const bool         split = size_ > 1 && k >= size_;
   const Eigen::Index c0 = split ? k * rank_ / size_ : 0, kc = split ? k * (rank_ + 1) / size_ - c0 : k;
   Eigen::MatrixXd    dU, ddU;
-  if (modal) dU.noalias() = ti_->ModalInverse() * dZ0.middleCols(c0, kc).topRows(N), ddU.noalias() = ti_->ModalInverse() * dZ0.middleCols(c0, kc).bottomRows(N);
+  if (modal) {
+    dU.resize(N, kc), ddU.resize(N, kc);
+    Gemm(ti_->ModalInverse(), false, dZ0.middleCols(c0, kc).topRows(N), dU);
+    Gemm(ti_->ModalInverse(), false, dZ0.middleCols(c0, kc).bottomRows(N), ddU);
+  }
   else dU = dZ0.middleCols(c0, kc).topRows(N), ddU = dZ0.middleCols(c0, kc).bottomRows(N);
   Eigen::RowVectorXd dh = dT.segment(c0, kc) / (PetscReal)steps;
   ThetaIntegrator::StepData sd{&sdUi_, &sdUn_, &sc_, &svs_};
@@ -219,8 +224,8 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   }
   dZ1.resize(2 * N, k);
   if (modal) {
-    dZ1.middleCols(c0, kc).topRows(N).noalias()    = ti_->ModalBasis() * dU;
-    dZ1.middleCols(c0, kc).bottomRows(N).noalias() = ti_->ModalBasis() * ddU;
+    Gemm(ti_->ModalBasis(), false, dU, dZ1.middleCols(c0, kc).topRows(N));
+    Gemm(ti_->ModalBasis(), false, ddU, dZ1.middleCols(c0, kc).bottomRows(N));
   } else {
     dZ1.middleCols(c0, kc).topRows(N)    = dU;
     dZ1.middleCols(c0, kc).bottomRows(N) = ddU;

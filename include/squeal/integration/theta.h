@@ -173,7 +173,8 @@ private:
   PetscInt        h_storage_ = 0;            // -theta_h_storage: 0 auto, 1 dense, 2 sparse
   // ModalTangent: the basis (for the matrices with checksum modal_sum_), its state (-1 undecided,
   // 0 not diagonal, 1 diagonal), the modal K and C, and per step size modal_h_ the diagonals of P1,
-  // P2, H^T Phi and Phi^-1 Y. modal_why_: the reason when not taken.
+  // P2, H^T Phi and 1/a (Phi^-1 Y = diag(1/a) (H^T Phi)^T, read from Htm_ in place). modal_why_:
+  // the reason when not taken.
   PetscInt        modal_tangent_ = 0;        // -theta_modal_tangent: 0 auto, 1 false, 2 true
   int             modal_state_   = -1;
   std::uint64_t   modal_sum_     = 0;
@@ -181,8 +182,8 @@ private:
   bool            dense_sum_ok_  = false;
   PetscReal       modal_h_       = -1, modal_offdiag_ = 0;
   bool            modal_on_      = false;
-  Eigen::MatrixXd Phi_, PhiInv_, Htm_, Htmn_, Ym_; // Htmn_: Htm_'s normal rows
-  Eigen::VectorXd mk_, mc_, p1m_, p2m_;
+  Eigen::MatrixXd Phi_, PhiInv_, Htm_, Htmn_; // Htmn_: Htm_'s normal rows
+  Eigen::VectorXd mk_, mc_, p1m_, p2m_, ainvm_;
   std::string     modal_why_;
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
   PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
@@ -203,7 +204,8 @@ private:
   };
   std::vector<TangentUnknown> tunk_;
   void TangentUnknowns(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end); // tunk_ of a step
-  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tGn_, tdrf_, tWG_;
+  Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tGn_, tdrf_, tWG_, tYr_;
+  Eigen::VectorXd tG3_;
   Eigen::VectorXd tq_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
   PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,

@@ -1,0 +1,76 @@
+// Dense products and LU solves through BLAS (core/dense_blas.h) against sums written out here.
+#include "squeal/core/dense_blas.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+using namespace squeal;
+
+namespace {
+
+// C = alpha op(A) B + beta C as the textbook triple loop, in long double.
+Eigen::MatrixXd Reference(const Eigen::MatrixXd &A, bool t, const Eigen::MatrixXd &B, const Eigen::MatrixXd &C0, double alpha, double beta)
+{
+  const Eigen::Index m = t ? A.cols() : A.rows(), k = t ? A.rows() : A.cols();
+  Eigen::MatrixXd C(m, B.cols());
+  for (Eigen::Index i = 0; i < m; ++i)
+    for (Eigen::Index j = 0; j < B.cols(); ++j) {
+      long double s = 0;
+      for (Eigen::Index l = 0; l < k; ++l) s += (long double)(t ? A(l, i) : A(i, l)) * B(l, j);
+      C(i, j) = (double)(alpha * s + (long double)beta * C0(i, j));
+    }
+  return C;
+}
+
+} // namespace
+
+TEST(DenseBlas, ProductsOfBlocksMatchTheSumsInEitherOrientation)
+{
+  // Operands that are blocks of larger matrices (an outer stride other than their rows), C
+  // accumulated (beta = 1) and overwritten (beta = 0, C holding NaNs), the sizes of the Floquet
+  // blocks (16 columns) and of the fallbacks to Eigen (one column; a product below 8192
+  // multiply-adds).
+  std::srand(7);
+  std::printf("BLAS behind libblas.so.3: %s\n", OptimizedBlas() ? "OpenBLAS (products of two or more columns through it)" : "not OpenBLAS (Eigen throughout)");
+  struct Case {
+    Eigen::Index m, k, n;
+  };
+  for (const Case c : {Case{131, 97, 16}, Case{131, 97, 1}, Case{12, 9, 5}, Case{40, 300, 3}})
+    for (bool t : {false, true})
+      for (double beta : {0.0, 1.0}) {
+        const Eigen::MatrixXd Abig = Eigen::MatrixXd::Random(t ? c.k + 3 : c.m + 3, t ? c.m + 2 : c.k + 2);
+        const Eigen::MatrixXd A    = t ? Abig.block(1, 1, c.k, c.m) : Abig.block(1, 1, c.m, c.k);
+        const Eigen::MatrixXd Bbig = Eigen::MatrixXd::Random(c.k + 5, c.n + 1);
+        Eigen::MatrixXd       Cbig = Eigen::MatrixXd::Random(c.m + 4, c.n + 2);
+        const Eigen::MatrixXd C0   = Cbig.block(2, 1, c.m, c.n);
+        if (beta == 0) Cbig.block(2, 1, c.m, c.n).setConstant(std::numeric_limits<double>::quiet_NaN());
+        const Eigen::MatrixXd ref = Reference(A, t, Bbig.block(3, 0, c.k, c.n), C0, -0.75, beta);
+        Gemm(t ? Abig.block(1, 1, c.k, c.m) : Abig.block(1, 1, c.m, c.k), t, Bbig.block(3, 0, c.k, c.n), Cbig.block(2, 1, c.m, c.n), -0.75, beta);
+        const double err = (Cbig.block(2, 1, c.m, c.n) - ref).norm() / ref.norm();
+        EXPECT_LT(err, 1e-13) << c.m << " x " << c.k << " x " << c.n << (t ? " transposed" : "") << ", beta " << beta;
+        // The rows and columns around C's block are untouched.
+        EXPECT_TRUE(std::isfinite(Cbig.sum()));
+      }
+}
+
+TEST(DenseBlas, LuSolveSolvesThePermutedSystem)
+{
+  // A with small leading entries, so that partial pivoting permutes rows: A X = B to round-off,
+  // for 1, 2 and 24 right-hand sides (one column stays in Eigen).
+  std::srand(11);
+  const Eigen::Index m = 90;
+  Eigen::MatrixXd    A = Eigen::MatrixXd::Random(m, m);
+  A.diagonal() *= 1e-3;
+  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(A);
+  ASSERT_TRUE((lu.permutationP().indices().array() != Eigen::ArrayXi::LinSpaced(m, 0, (int)m - 1)).any());
+  for (Eigen::Index n : {1, 2, 24}) {
+    const Eigen::MatrixXd B = Eigen::MatrixXd::Random(m, n);
+    Eigen::MatrixXd       X = B;
+    LuSolveInPlace(lu, X);
+    const double res = (A * X - B).norm() / (A.norm() * X.norm());
+    EXPECT_LT(res, 1e-14) << n << " right-hand sides";
+  }
+}
