@@ -133,7 +133,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         // once for both products, a column at a time (the second axpy reads it from L1), instead
         // of H^T Phi and then its normal rows; the gap change takes the normal rows of the
         // second. With the step factor and the product by (H^T Phi)^T below, a step reads
-        // 2 (3 n_c) N + m^2 words; the last-level cache can then hold H^T Phi across steps.
+        // 2 (3 n_c) N + m^2 words (docs/records.md, "Block tangents through BLAS").
         tG3_.setZero(3 * nc_);
         auto hv = tHv_.col(0);
         hv.setZero();
