@@ -116,6 +116,7 @@ PetscErrorCode ThetaIntegrator::SetFixedPoint(PetscReal tol, PetscInt max_it)
   PetscCheck(max_it >= 1, comm_, kErrInput, "option -%sfp_max_it = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), max_it);
   fp_tol_    = tol;
   fp_max_it_ = max_it;
+  local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
   PetscFunctionReturn(0);
 }
 

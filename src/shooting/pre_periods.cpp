@@ -223,6 +223,18 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
     ~StepsSwap() { Restore(); }
   } swap{*this, resume || pre_steps <= 0 ? steps : pre_steps};
   PetscInt            coarse_periods = 0; // run at -shoot_pre_steps, once the flow went on at -shoot_steps
+  // The contact problems of these flows to -shoot_pre_fp_tol, restored for Newton (also on an error).
+  struct FixedPointLoose {
+    ThetaIntegrator &ti;
+    const PetscReal  kept;
+    const PetscInt   max_it;
+    FixedPointLoose(ThetaIntegrator &t, PetscReal loose) : ti(t), kept(t.FixedPointTolerance()), max_it(t.FixedPointMaxIt())
+    {
+      if (loose > kept) (void)ti.SetFixedPoint(loose, max_it); // valid: positive, as -shoot_pre_fp_tol is checked to be
+    }
+    ~FixedPointLoose() { (void)ti.SetFixedPoint(kept, max_it); }
+    PetscReal Tol() const { return ti.FixedPointTolerance(); }
+  } loose{*ti_, pre_fp_tol};
   PetscBool           mon = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
   mon = (PetscBool)(mon || monitor);
@@ -252,6 +264,7 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
     sec.SetStep(T, steps);
     PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
     ++k;
+    pre_passes_ += flow_passes_, pre_steps_run_ += steps;
     PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
     PetscReal dt = 0;
     PetscCall(ReturnDistance(U, dU, U1_, dU1_, gU_, gdU_, wU_, wdU_, &dt, &e));
@@ -316,8 +329,8 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   if (pre_done_ == 0)
     PetscCall(PetscPrintf(comm_,
                           "shooting: start after %" PetscInt_FMT " period(s) of the flow from the given state (-shoot_pre_periods %" PetscInt_FMT
-                          ", -shoot_pre_tol %g%s): return distance %.2e, T = %.9f s\n",
-                          k, pre_periods, (double)tol, coarse, (double)e, (double)T));
+                          ", -shoot_pre_tol %g%s): return distance %.2e, T = %.9f s, %.1f contact iterations a step (to %g, -shoot_pre_fp_tol)\n",
+                          k, pre_periods, (double)tol, coarse, (double)e, (double)T, (double)PreContactIterations(), (double)loose.Tol()));
   else
     PetscCall(PetscPrintf(comm_,
                           "shooting: start after %" PetscInt_FMT " more period(s) of the flow (up to %" PetscInt_FMT

@@ -108,6 +108,10 @@ PetscErrorCode Shooting::SetFromOptions()
                     "m = (d / d_0)^-p + shift, d = |(omega_0 (U0 - U_e), dU0)|, d_0 its value at the start, and a "
                     "backtracking line search on it unless -shoot_snes_linesearch_type is given (0: off)",
                     "Shooting", &deflate_power, Range::NonNegative(), checks);
+  SquealOptionsReal("-pre_fp_tol",
+                    "Contact fixed-point tolerance in the pre-periods' flow (-theta_fp_tol if that is looser; Newton's flows and "
+                    "everything after use -theta_fp_tol)",
+                    "Shooting", &pre_fp_tol, Range::Positive(), checks);
   SquealOptionsReal("-deflate_shift", "Shift of the deflation operator m (its value far from Z_e)", "Shooting", &deflate_shift,
                     Range::Positive(), checks);
   PetscCall(PetscOptionsReal("-tangent_cache_mb",
@@ -416,7 +420,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   PetscCall(SetUpFor(model, eq, ti));
   res          = ShootingResult{};
   T0_          = T0;
-  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = pre_coarse_ = tangent_columns_ = recycled_columns_ = 0;
+  evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = pre_coarse_ = pre_passes_ = pre_steps_run_ = tangent_columns_ = recycled_columns_ = 0;
   pre_T_       = T0;
   pre_measured_ = 0, recentred_ = false;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
@@ -440,6 +444,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
       res.period              = T;
       res.pre_periods         = pre_done_;
       res.pre_coarse_periods  = pre_coarse_;
+      res.pre_contact_iterations = PreContactIterations();
       res.pre_period          = pre_T_;
       res.pre_measured_period = pre_measured_;
       PetscFunctionReturn(0);
@@ -497,6 +502,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.setups              = setups_;
   res.pre_periods         = pre_done_;
   res.pre_coarse_periods  = pre_coarse_;
+  res.pre_contact_iterations = PreContactIterations();
   res.pre_period          = pre_T_;
   res.pre_measured_period = pre_measured_;
   res.bracket_centre      = T0_;
@@ -683,6 +689,7 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting", "steps_per_period", steps));
   PetscCall(out.WriteAttribute("/shooting", "pre_periods", res.pre_periods));
   PetscCall(out.WriteAttribute("/shooting", "pre_coarse_periods", res.pre_coarse_periods));
+  PetscCall(out.WriteAttribute("/shooting", "pre_contact_iterations", res.pre_contact_iterations));
   PetscCall(out.WriteAttribute("/shooting", "pre_retries", res.pre_retries));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
   if (!res.floquet.empty()) {

@@ -742,6 +742,33 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
   }
 }
 
+// -shoot_pre_fp_tol: the pre-periods' flow solves its contact problems to a looser tolerance than
+// the integrator's (-theta_fp_tol), which Newton's flows get back. Against pre-periods at the
+// integrator's own tolerance: fewer contact iterations a step in them, the integrator's tolerance
+// restored after, and Newton on the same cycle (within the discrete cycle's phase dependence, as above).
+TEST(Shooting, PrePeriodsSolveTheirContactsLooselyAndNewtonAtTheIntegratorsTolerance)
+{
+  ThreeDofParams p;
+  p.V = 3.0;
+  ShootingResult res[2];
+  for (int loose : {0, 1}) {
+    Problem pr(p);
+    pr.sh.Floquet().compute = PETSC_FALSE;
+    pr.sh.pre_periods       = 200;
+    pr.sh.pre_tol           = 1e-3;
+    const PetscReal own     = pr.ti.FixedPointTolerance();
+    EXPECT_EQ(own, 1e-12);
+    pr.sh.pre_fp_tol = loose ? 1e-5 : own;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, res[loose]), 0) << res[loose].reason;
+    EXPECT_TRUE(res[loose].converged);
+    EXPECT_GT(res[loose].pre_periods, 0);
+    EXPECT_EQ(pr.ti.FixedPointTolerance(), own) << "the integrator's tolerance was not restored after the pre-periods";
+  }
+  EXPECT_LT(res[1].pre_contact_iterations, res[0].pre_contact_iterations - 0.1);
+  EXPECT_NEAR(res[1].period / res[0].period, 1.0, 2e-6);
+  EXPECT_LE(std::abs(res[1].iterations - res[0].iterations), 1);
+}
+
 // Issue 19 item 4: steps per period and pre-periods follow from the model when not given. The
 // 3-DOF cases keep what they were checked with (1000 steps, no pre-periods: the same iterates,
 // bit for bit, as with both given); FE-sized models get 200 steps and up to 200 pre-periods to 0.02.

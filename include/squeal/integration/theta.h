@@ -54,7 +54,9 @@ public:
   explicit ThetaIntegrator(MPI_Comm comm) : comm_(comm) {}
   PetscErrorCode SetOptionsPrefix(const char *prefix);
   PetscErrorCode SetTheta(PetscReal theta);
-  PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it);
+  PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it); // also for the steps after it, without a new SetUp
+  PetscReal      FixedPointTolerance() const { return fp_tol_; }
+  PetscInt       FixedPointMaxIt() const { return fp_max_it_; }
   PetscErrorCode SetRhoScale(PetscReal s);
   PetscErrorCode SetDenseMax(PetscInt n); // PETSC_DECIDE: from the model (DefaultDense)
   // The back end chosen without -theta_dense_max for a model of n DOFs whose K and M have this
