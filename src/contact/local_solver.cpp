@@ -138,6 +138,7 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
   auto run = [&](const FixedPointParams &p) {
     return sparse_ ? ContactPasses(p, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_) : ContactPasses(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
   };
+  if (fp_symmetric_ && !sparse_ && p_.max_it >= 1) return SymmetricSweeps(w_f, gap0, r);
   if (fp_anderson_ == 0 || p_.max_it < 1) return run(p_);
   // One pass at a time, each from the mixed point of the last ones (SetFixedPointAnderson).
   FixedPointParams p1 = p_;
@@ -165,6 +166,76 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
     }
   }
   return {p_.max_it, info.residual, false};
+}
+
+// The fixed point's projections in symmetric Gauss-Seidel order (SetFixedPointSymmetric), same point
+// update and stopping test as ContactPassesLaw. s_c = sum_{j<c} hW_cj r_j and t_c = sum_{j>c} hW_cj r_j:
+// a forward sweep rebuilds s from zero (each new r_c into the rows below c) and reads t, which the
+// backward sweep before it left exact for the points after c, not yet visited; a backward sweep the
+// other way round. The start needs t and the end the stale one of the two again: two half products.
+LocalSolveInfo LocalContactSolver::SymmetricSweeps(CRef w_f, CRef gap0, Ref r)
+{
+  const Eigen::Index nc = rho_n_.size(), m = 3 * nc;
+  const Eigen::Map<const Eigen::MatrixXd> hW(hW_.data(), m, m);
+  const PetscReal    h = p_.h, mu = p_.mu;
+  const bool         rect = p_.rectilinear;
+  sw_s_.setZero(m), sw_t_.setZero(m);
+  auto upper = [&](Eigen::VectorXd &t) { // t = (strictly upper block part of h W) r
+    t.setZero();
+    for (Eigen::Index c = 1; c < nc; ++c) {
+      const Eigen::Index o = 3 * c;
+      if (r.segment<3>(o).isZero(0)) continue;
+      t.head(o).noalias() += hW.block(0, o, o, 3) * r.segment<3>(o);
+    }
+  };
+  auto lower = [&](Eigen::VectorXd &s) { // s = (strictly lower block part of h W) r
+    s.setZero();
+    for (Eigen::Index c = 0; c + 1 < nc; ++c) {
+      const Eigen::Index o = 3 * c;
+      if (r.segment<3>(o).isZero(0)) continue;
+      s.tail(m - o - 3).noalias() += hW.block(o + 3, o, m - o - 3, 3) * r.segment<3>(o);
+    }
+  };
+  upper(sw_t_);
+  PetscReal residual = 0;
+  PetscInt  it       = 1;
+  bool      forward  = true, done = false;
+  for (; it <= p_.max_it; ++it, forward = !forward) {
+    PetscReal change = 0, rn_sum = 0;
+    if (forward) sw_s_.setZero();
+    else sw_t_.setZero();
+    for (Eigen::Index k = 0; k < nc; ++k) {
+      const Eigen::Index c = forward ? k : nc - 1 - k, o = 3 * c;
+      const Eigen::Vector3d vc = w_f.segment<3>(o) + sw_s_.segment<3>(o) + sw_t_.segment<3>(o) + hW.block<3, 3>(o, o) * r.segment<3>(o);
+      const PetscReal       gn = gap0[c] + h * vc[kN];
+      const PetscReal       rn = std::max(0.0, r[o + kN] - rho_n_[c] * gn);
+      PetscReal             rt = r[o + kT] - rho_t_[c] * (vc[kT] - speed_[c]);
+      PetscReal             rb = r[o + kB] - rho_t_[c] * vc[kB];
+      ProjectFriction(rect, mu * rn, rt, rb);
+      change += std::abs(rt - r[o + kT]) + std::abs(rb - r[o + kB]) + std::abs(rn - r[o + kN]);
+      rn_sum += rn;
+      r[o + kT] = rt, r[o + kB] = rb, r[o + kN] = rn;
+      if (rt == 0 && rb == 0 && rn == 0) continue;
+      if (forward) {
+        if (o + 3 < m) sw_s_.tail(m - o - 3).noalias() += hW.block(o + 3, o, m - o - 3, 3) * r.segment<3>(o);
+      } else if (o > 0) sw_t_.head(o).noalias() += hW.block(0, o, o, 3) * r.segment<3>(o);
+    }
+    residual = change / (p_.r_ref + rn_sum);
+    if (!(residual > p_.tol)) {
+      done = true;
+      break;
+    }
+  }
+  // v = w_f + h W r for the result: the sum the last sweep left stale made again.
+  const bool last_forward = done ? forward : !forward;
+  if (last_forward) upper(sw_t_);
+  else lower(sw_s_);
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    const Eigen::Index o = 3 * c;
+    v_.segment<3>(o) = w_f.segment<3>(o) + sw_s_.segment<3>(o) + sw_t_.segment<3>(o) + hW.block<3, 3>(o, o) * r.segment<3>(o);
+  }
+  if (done) return {it, residual, !std::isnan(residual)};
+  return {p_.max_it, residual, false};
 }
 
 // One Jacobi pass of the fixed point's projections, r -> P(r), written as the passes write it (the

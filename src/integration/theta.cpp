@@ -247,6 +247,10 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "Fixed point: Anderson mixing of this many past passes, each pass started from the mixed point "
                             "(run-time-sized and sparse steps; 0: plain passes; at most 8)",
                             "LocalContactSolver::SetFixedPointAnderson", fp_anderson_, &fp_anderson_, nullptr));
+  PetscCall(PetscOptionsBool("-fp_symmetric",
+                             "Fixed point on a dense W (run-time-sized steps): symmetric Gauss-Seidel sweeps, each reading half of W, "
+                             "unmixed, instead of forward passes (iterations then count sweeps)",
+                             "LocalContactSolver::SetFixedPointSymmetric", fp_symmetric_, &fp_symmetric_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCheck(fp_anderson_ >= 0 && fp_anderson_ <= 8, comm_, kErrInput, "option -%sfp_anderson = %" PetscInt_FMT ": expected 0 to 8",
@@ -387,6 +391,7 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_, ssn_anderson_);
   local_.SetPredictor(contact_predict_);
   local_.SetFixedPointAnderson(fp_anderson_);
+  local_.SetFixedPointSymmetric(fp_symmetric_);
   if (dense_) SetUpKernel();
   PetscCall(PetscLogEventEnd(ev, 0, 0, 0, 0));
   PetscFunctionReturn(0);

@@ -410,6 +410,72 @@ TEST(LocalSolver, MixedPassesWhereGaussSeidelIsSlow)
   }
 }
 
+// SetFixedPointSymmetric: symmetric Gauss-Seidel sweeps, each reading half of W. On every state
+// (open, stick, slip, each law) against the constructed solution and the forward passes; the
+// velocity left for the caller (Velocity()) is w_f + h W r of the result, whether the last sweep ran
+// forward or backward; capped, the output lies in the friction set with its velocity consistent.
+TEST(LocalSolver, SymmetricSweepsSolveWhatThePassesSolve)
+{
+  std::mt19937 gen(23);
+  std::normal_distribution<double> n(0, 1);
+  const double   h  = 1e-4;
+  const PetscInt nc = 30, m = 3 * nc;
+  Eigen::MatrixXd B(m, m);
+  for (auto &x : B.reshaped()) x = n(gen);
+  Eigen::MatrixXd W = B * B.transpose() / m;
+  W += 0.02 * W.diagonal().mean() * Eigen::MatrixXd::Identity(m, m);
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
+    SCOPED_TRACE(FrictionLawName(law));
+    const ContactSet cs = MakeSet(nc, 0.3, law, gen);
+    bool             parity[2] = {false, false}; // sweeps ended forward (odd count) / backward (even)
+    long             count[2]  = {0, 0};
+    for (int k = 0; k < 6; ++k) {
+      std::vector<State> states(nc);
+      for (PetscInt c = 0; c < nc; ++c) states[c] = c % 5 == k % 5 ? State((c + k) % 3) : kSlipS;
+      const Problem   pb = Construct(cs, W, h, states, gen);
+      Eigen::VectorXd r[2];
+      for (int j = 0; j < 2; ++j) { // forward passes (mixed, the default), symmetric sweeps
+        LocalContactSolver ls;
+        ls.Setup(cs, W, h, 1.0);
+        ls.SetTolerances(1e-14, 100000, 1.0);
+        ls.SetFixedPointAnderson(5);
+        ls.SetFixedPointSymmetric(j == 1);
+        r[j]                      = Eigen::VectorXd::Zero(m);
+        const LocalSolveInfo info = ls.Solve(pb.w_f, pb.gap0, r[j]);
+        ASSERT_TRUE(info.converged) << "solver " << j << " problem " << k;
+        EXPECT_LT(RelErr(r[j], pb.r), 1e-10) << "solver " << j << " problem " << k;
+        const Eigen::VectorXd v = pb.w_f + h * W * r[j];
+        EXPECT_LT((ls.Velocity() - v).norm(), 1e-12 * v.norm()) << "solver " << j << " problem " << k;
+        if (j == 1) parity[info.iterations % 2] = true;
+        count[j] += info.iterations;
+      }
+      EXPECT_LT(RelErr(r[1], r[0]), 1e-12) << "problem " << k;
+    }
+    EXPECT_TRUE(parity[0] && parity[1]) << "the sweeps never ended in one of the two directions";
+    PetscPrintf(PETSC_COMM_WORLD, "%s, 6 problems on a strongly coupled W: %ld mixed forward passes, %ld symmetric sweeps (each half of W)\n",
+                FrictionLawName(law), count[0], count[1]);
+    for (PetscInt cap : {3, 4}) {
+      std::vector<State> states(nc, kSlipS);
+      const Problem      pb = Construct(cs, W, h, states, gen);
+      LocalContactSolver ls;
+      ls.Setup(cs, W, h, 1.0);
+      ls.SetTolerances(1e-14, cap, 1.0);
+      ls.SetFixedPointSymmetric(true);
+      Eigen::VectorXd      r    = Eigen::VectorXd::Zero(m);
+      const LocalSolveInfo info = ls.Solve(pb.w_f, pb.gap0, r);
+      EXPECT_FALSE(info.converged);
+      EXPECT_EQ(info.iterations, cap);
+      for (PetscInt c = 0; c < nc; ++c) {
+        const PetscReal rn = r[3 * c + kN], rt = r[3 * c + kT], rb = r[3 * c + kB];
+        EXPECT_GE(rn, 0.0) << "point " << c;
+        EXPECT_LE(std::hypot(rt, rb), cs.Mu() * rn * (1 + 1e-12)) << "point " << c;
+      }
+      const Eigen::VectorXd v = pb.w_f + h * W * r;
+      EXPECT_LT((ls.Velocity() - v).norm(), 1e-12 * v.norm()) << "capped at " << cap;
+    }
+  }
+}
+
 // Whole transients through ThetaIntegrator: -theta_contact_solver ssn against fp on the 3-DOF
 // (separation/slip and stick/slip cases, run-time-sized dense kernel) and on a 6-cell chain on the
 // dense and the sparse back end (dense and sparse W): the same states to round-off.
@@ -436,12 +502,13 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     SlidingEquilibrium eq;
     ASSERT_EQ(eqs.Solve(model, eq), 0);
     const PetscInt nc = model.contacts.Size(), N = model.Size();
-    test::Integration run[2]; // fp, ssn
-    for (int k = 0; k < 2; ++k) {
+    test::Integration run[3]; // fp, ssn, fp in symmetric sweeps
+    for (int k = 0; k < 3; ++k) {
       ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
       ASSERT_EQ(run[k].ti.SetDenseMax(cse.dense_max), 0);
       ASSERT_EQ(run[k].ti.SetDelassusMax(cse.delassus_max, 0.0), 0);
-      ASSERT_EQ(run[k].ti.SetContactSolver(k ? "ssn" : "fp", 30), 0);
+      ASSERT_EQ(run[k].ti.SetContactSolver(k == 1 ? "ssn" : "fp", 30), 0);
+      run[k].ti.SetFixedPointSymmetric(k == 2 ? PETSC_TRUE : PETSC_FALSE);
       ASSERT_EQ(run[k].ti.SetUp(model, 1e-5), 0);
       ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
       ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
@@ -468,33 +535,37 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     ASSERT_FALSE(run[1].ti.FixedSizeKernel());
     ASSERT_EQ(run[0].ti.SparseDelassus(), run[1].ti.SparseDelassus());
     const PetscInt steps = 3000;
-    double         maxdiff = 0, scale = 0;
-    long           its[2] = {0, 0};
+    double         maxdiff = 0, scale = 0, maxdiff_sym = 0;
+    long           its[3] = {0, 0, 0};
     int            seen[3] = {0, 0, 0};
     std::vector<int> status;
     for (PetscInt i = 0; i < steps; ++i) {
-      StepInfo info[2];
-      for (int k = 0; k < 2; ++k) {
+      StepInfo info[3];
+      for (int k = 0; k < 3; ++k) {
         ASSERT_EQ(run[k].ti.Step(run[k].U, run[k].dU, run[k].r, &info[k]), 0);
         ASSERT_TRUE(info[k].contact.converged);
         its[k] += info[k].contact.iterations;
       }
       const Eigen::VectorXd a = test::ToDense(run[0].dU), b = test::ToDense(run[1].dU);
       maxdiff = std::max(maxdiff, (a - b).lpNorm<Eigen::Infinity>());
+      maxdiff_sym = std::max(maxdiff_sym, (a - test::ToDense(run[2].dU)).lpNorm<Eigen::Infinity>());
       scale   = std::max(scale, a.lpNorm<Eigen::Infinity>());
       run[0].ti.Contact().Status(run[0].r, status);
       for (int s : status) ++seen[s];
     }
     EXPECT_LT(maxdiff, 1e-9 * scale) << "chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
+    EXPECT_LT(maxdiff_sym, 1e-9 * scale) << "symmetric sweeps: chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
+    // The sweeps run where W is dense and the kernel run-time-sized: the 6-cell chain on the dense back end.
+    if (cse.chain && cse.dense_max) EXPECT_NE(its[2], its[0]);
     EXPECT_EQ(run[1].ti.Contact().NewtonSolves(), steps);
     EXPECT_EQ(run[1].ti.Contact().Fallbacks(), 0);
     PetscPrintf(PETSC_COMM_WORLD,
                 "%s%s: open/stick/slip %d/%d/%d, iterations per step fp %.2f ssn %.2f (Newton %.2f, %d factorisations, fallbacks %d), "
-                "largest |dU| difference %.2e of %.2e\n",
+                "largest |dU| difference %.2e of %.2e; symmetric sweeps %.2f per step, %.2e\n",
                 cse.chain ? "chain 6" : "3-DOF", cse.chain ? (cse.dense_max ? " dense" : cse.delassus_max ? " sparse, dense W" : " sparse W") : (cse.V > 1 ? " case 1" : " case 2"),
                 seen[0], seen[1], seen[2], (double)its[0] / steps, (double)its[1] / steps,
                 (double)run[1].ti.Contact().NewtonSteps() / steps, (int)run[1].ti.Contact().Factorisations(),
-                (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale);
+                (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale, (double)its[2] / steps, maxdiff_sym);
   }
 }
 

@@ -199,6 +199,14 @@ public:
   // the depth to 0: call this after it.
   void     SetFixedPointAnderson(PetscInt depth);
   PetscInt FixedPointAnderson() const { return fp_anderson_; }
+  // Dense W on run-time sizes: symmetric Gauss-Seidel sweeps (forward, backward, ...) instead of the
+  // forward passes, unmixed. W is symmetric, so a point's velocity is w_f + its diagonal block's
+  // share + (lower part of W) r of the points before it + (upper part) r of those after it, two
+  // sums kept by axpys: a forward sweep adds each new r_c to the rows below c only, a backward
+  // sweep to the rows above, so a sweep reads half of h W where a pass reads all of it
+  // (SymmetricSweeps). Iterations then count sweeps.
+  void SetFixedPointSymmetric(bool on) { fp_symmetric_ = on; }
+  bool FixedPointSymmetric() const { return fp_symmetric_; }
   PetscInt Predictor() const { return predict_; }
   // Counters since Setup: Newton solves, of which fell back to the fixed point, and Newton steps.
   PetscInt NewtonSolves() const { return newton_solves_; }
@@ -313,6 +321,9 @@ private:
   Eigen::MatrixXd a_f_, a_g_, a_v_, a_df_;
   PetscInt        mixed_ = 0; // chord steps replaced by the mixed point (counter since Setup)
   PetscInt        fp_anderson_ = 0, mixed_passes_ = 0;
+  bool            fp_symmetric_ = false;
+  Eigen::VectorXd sw_s_, sw_t_; // SymmetricSweeps' sums over the points before and after each point
+  LocalSolveInfo  SymmetricSweeps(CRef w_f, CRef gap0, Ref r);
   Eigen::VectorXd rin_; // the fixed point with mixing: the start of the current pass
   Eigen::Matrix<PetscReal, 3, Eigen::Dynamic> g_, gd_; // per point (3 x 3 blocks side by side): G_c, G_c D_c
   Eigen::MatrixXd                       J_;            // dense W

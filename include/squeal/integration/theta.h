@@ -56,6 +56,7 @@ public:
   PetscErrorCode SetTheta(PetscReal theta);
   PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it); // also for the steps after it, without a new SetUp
   PetscReal      FixedPointTolerance() const { return fp_tol_; }
+  void           SetFixedPointSymmetric(PetscBool on) { fp_symmetric_ = on; } // -theta_fp_symmetric; at the next SetUp
   PetscInt       FixedPointMaxIt() const { return fp_max_it_; }
   PetscErrorCode SetRhoScale(PetscReal s);
   PetscErrorCode SetDenseMax(PetscInt n); // PETSC_DECIDE: from the model (DefaultDense)
@@ -156,6 +157,7 @@ private:
   PetscInt     contact_predict_ = 2;                 // -theta_contact_predict: order of the starting guess's extrapolation
   PetscInt     ssn_anderson_ = 5;                    // -theta_ssn_anderson: depth of the mixing of Newton's chord steps
   PetscInt     fp_anderson_ = 5;                     // -theta_fp_anderson: depth of the mixing of the fixed point's passes
+  PetscBool    fp_symmetric_ = PETSC_FALSE;          // -theta_fp_symmetric: symmetric Gauss-Seidel sweeps (dense W, run-time sizes)
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
