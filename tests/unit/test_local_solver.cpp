@@ -101,6 +101,18 @@ Problem Construct(const ContactSet &cs, const Eigen::MatrixXd &W, PetscReal h, c
   return {v - h * W * r, gap0, r};
 }
 
+// W = B B^T / m plus 2 % of its mean diagonal, B m x m standard normal: every point coupled to every
+// other nearly as strongly as to itself, where Gauss-Seidel is slow.
+Eigen::MatrixXd CoupledW(PetscInt m, std::mt19937 &gen)
+{
+  std::normal_distribution<double> n(0, 1);
+  Eigen::MatrixXd                  B(m, m);
+  for (auto &x : B.reshaped()) x = n(gen);
+  Eigen::MatrixXd W = B * B.transpose() / m;
+  W += 0.02 * W.diagonal().mean() * Eigen::MatrixXd::Identity(m, m);
+  return W;
+}
+
 double RelErr(const Eigen::VectorXd &a, const Eigen::VectorXd &b) { return (a - b).lpNorm<Eigen::Infinity>() / (1 + b.lpNorm<Eigen::Infinity>()); }
 
 struct Solved {
@@ -351,13 +363,9 @@ TEST(LocalSolver, AndersonAndPredictorFollowASmoothTrajectory)
 TEST(LocalSolver, MixedPassesWhereGaussSeidelIsSlow)
 {
   std::mt19937 gen(11);
-  std::normal_distribution<double> n(0, 1);
-  const double   h  = 1e-4;
-  const PetscInt nc = 30, m = 3 * nc;
-  Eigen::MatrixXd B(m, m);
-  for (auto &x : B.reshaped()) x = n(gen);
-  Eigen::MatrixXd W = B * B.transpose() / m;
-  W += 0.02 * W.diagonal().mean() * Eigen::MatrixXd::Identity(m, m);
+  const double          h  = 1e-4;
+  const PetscInt        nc = 30, m = 3 * nc;
+  const Eigen::MatrixXd W  = CoupledW(m, gen);
   for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
     SCOPED_TRACE(FrictionLawName(law));
     const ContactSet cs = MakeSet(nc, 0.3, law, gen);
@@ -417,13 +425,9 @@ TEST(LocalSolver, MixedPassesWhereGaussSeidelIsSlow)
 TEST(LocalSolver, SymmetricSweepsSolveWhatThePassesSolve)
 {
   std::mt19937 gen(23);
-  std::normal_distribution<double> n(0, 1);
-  const double   h  = 1e-4;
-  const PetscInt nc = 30, m = 3 * nc;
-  Eigen::MatrixXd B(m, m);
-  for (auto &x : B.reshaped()) x = n(gen);
-  Eigen::MatrixXd W = B * B.transpose() / m;
-  W += 0.02 * W.diagonal().mean() * Eigen::MatrixXd::Identity(m, m);
+  const double          h  = 1e-4;
+  const PetscInt        nc = 30, m = 3 * nc;
+  const Eigen::MatrixXd W  = CoupledW(m, gen);
   for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
     SCOPED_TRACE(FrictionLawName(law));
     const ContactSet cs = MakeSet(nc, 0.3, law, gen);
@@ -556,7 +560,9 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     EXPECT_LT(maxdiff, 1e-9 * scale) << "chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
     EXPECT_LT(maxdiff_sym, 1e-9 * scale) << "symmetric sweeps: chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
     // The sweeps run where W is dense and the kernel run-time-sized: the 6-cell chain on the dense back end.
-    if (cse.chain && cse.dense_max) EXPECT_NE(its[2], its[0]);
+    if (cse.chain && cse.dense_max) {
+      EXPECT_NE(its[2], its[0]);
+    }
     EXPECT_EQ(run[1].ti.Contact().NewtonSolves(), steps);
     EXPECT_EQ(run[1].ti.Contact().Fallbacks(), 0);
     PetscPrintf(PETSC_COMM_WORLD,
