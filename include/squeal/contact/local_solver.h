@@ -200,11 +200,12 @@ public:
   void     SetFixedPointAnderson(PetscInt depth);
   PetscInt FixedPointAnderson() const { return fp_anderson_; }
   // Dense W on run-time sizes: symmetric Gauss-Seidel sweeps (forward, backward, ...) instead of the
-  // forward passes, unmixed. W is symmetric, so a point's velocity is w_f + its diagonal block's
-  // share + (lower part of W) r of the points before it + (upper part) r of those after it, two
-  // sums kept by axpys: a forward sweep adds each new r_c to the rows below c only, a backward
-  // sweep to the rows above, so a sweep reads half of h W where a pass reads all of it
-  // (SymmetricSweeps). Iterations then count sweeps.
+  // forward passes, unmixed. A point's velocity is w_f + its diagonal block's share + the sums of
+  // W's row over the points before it (s) and after it (t), both kept by axpys with the columns
+  // of the points visited: a forward sweep adds each new r_c to the rows below c only (and reads
+  // the t the backward sweep before it left), a backward sweep to the rows above, so a sweep reads
+  // half of h W where a pass reads all of it (SymmetricSweeps). No symmetry of W is assumed.
+  // Iterations then count sweeps.
   void SetFixedPointSymmetric(bool on) { fp_symmetric_ = on; }
   bool FixedPointSymmetric() const { return fp_symmetric_; }
   PetscInt Predictor() const { return predict_; }
