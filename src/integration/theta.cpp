@@ -221,6 +221,11 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                               "diagonal too (O(n_c N) a column and step instead of O(N^2)); auto: when C is diagonal there and the "
                               "products cost less than 0.8 x the nodal ones",
                               "ThetaIntegrator::ModalTangent", modal, 3, modal[modal_tangent_], &modal_tangent_, nullptr));
+  PetscCall(PetscOptionsEList("-modal_step",
+                              "Dense back end: the step in the same modal coordinates, where C is diagonal there to round-off (a step "
+                              "size's set-up without the O(N^3) solves; shooting sets up at every new period); auto: when a step reads no "
+                              "more than the nodal one and the caller sets up many step sizes (shooting), or reads at most 0.8 of it, N >= 64",
+                              "ThetaIntegrator::ModalStep", modal, 3, modal[modal_step_], &modal_step_, nullptr));
   const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
   PetscCall(PetscOptionsEList("-parallel_solver",
                               "Sparse back end on several ranks: direct (MUMPS LU, distributed), cg (CG + block Jacobi, each rank's "
@@ -414,13 +419,6 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   Fd_.resize(n_);
   PetscCall(Gather(m.F, Fd_));
   modal_h_ = -1; // ModalTangent's per-h quantities, H^T Phi included (the contacts may have changed)
-  const PetscReal       h = h_, t = theta_;
-  const Eigen::MatrixXd A = Md_ + h * t * Cd_ + h * h * t * t * Kd_;
-  const Eigen::MatrixXd B = Md_ - h * (1 - t) * Cd_ - h * h * t * (1 - t) * Kd_;
-  Eigen::LLT<Eigen::MatrixXd> &llt = llt_;
-  llt.compute(A);
-  PetscCheck(llt.info() == Eigen::Success, comm_, kErrInput,
-             "theta-method: A = M + h theta C + h^2 theta^2 K is not positive definite (h = %g)", (double)h);
   Ht_.setZero(3 * nc_, n_);
   for (PetscInt c = 0; c < nc_; ++c)
     for (int d = 0; d < 3; ++d) m.contacts.ForEachEntry(c, d, [&](PetscInt j, PetscReal v) { Ht_(3 * c + d, j) += v; });
@@ -433,15 +431,16 @@ PetscErrorCode ThetaIntegrator::SetUpDense()
   for (PetscInt c = 0; c < nc_; ++c) Htn_.row(c) = Ht_.row(3 * c + kN);
   if (ht_sparse_) Hts_ = Ht_.sparseView(0.0, 0.0), Htns_ = Htn_.sparseView(0.0, 0.0), Htn_.resize(0, 0);
   else Hts_.resize(0, 0), Htns_.resize(0, 0);
-  P1_ = llt.solve(B);
-  P2_ = -h * llt.solve(Kd_);
-  p3_ = h * llt.solve(Fd_);
-  Y_  = llt.solve(Ht_.transpose());
-  // By H^T's non-zeros where it is sparse: the dense product was a fifth of the set-up on the
-  // reduced 31119-DOF pad (0.2 of 1.05 s, 3 n_c = 1353, N = 1420), and shooting sets up at every
-  // new period. Rows of one or two non-zeros give the dense product's sums exactly.
-  if (ht_sparse_) W_.noalias() = Hts_ * Y_;
-  else W_.noalias() = Ht_ * Y_;
+  PetscCall(ModalStepSetUp());
+  if (!modal_step_on_) {
+    nodal_ready_ = false;
+    PetscCall(EnsureNodal());
+    // By H^T's non-zeros where it is sparse: the dense product was a fifth of the set-up on the
+    // reduced 31119-DOF pad (0.2 of 1.05 s, 3 n_c = 1353, N = 1420), and shooting sets up at every
+    // new period. Rows of one or two non-zeros give the dense product's sums exactly.
+    if (ht_sparse_) W_.noalias() = Hts_ * Y_;
+    else W_.noalias() = Ht_ * Y_;
+  }
   vf_.resize(n_);
   dU0_.resize(n_);
   PetscFunctionReturn(0);
@@ -633,6 +632,12 @@ PetscErrorCode ThetaIntegrator::Local(Vec x, Eigen::VectorXd &out)
 
 void ThetaIntegrator::SetUpKernel()
 {
+  if (modal_step_on_) {
+    // Newton (-theta_contact_solver ssn) runs in Solve, which SolveSized<Dynamic> calls for it too.
+    ModalStepData m{&Phi_, &PhiInv_, &Htm_, &p1m_, &p2m_, &p3m_, &ainvm_, &Ht_, ht_sparse_ ? &Hts_ : nullptr, &g0_, h_, theta_, &local_};
+    kernel_ = MakeModalStepKernel(m);
+    return;
+  }
   DenseStepData d{&P1_, &P2_, &Y_, &Ht_, ht_sparse_ ? &Hts_ : nullptr, &p3_, &g0_, h_, theta_, &local_};
   // The fixed-size kernels run the fixed point only (SolveSized); Newton runs in the run-time-sized one.
   kernel_ = MakeDenseStepKernel(d, fixed_size_ && local_.Solver() == ContactSolver::kFixedPoint);
@@ -742,6 +747,9 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
     PetscCall(PetscViewerASCIIPrintf(viewer, "  H^T: %s (%" PetscInt_FMT " non-zeros of %" PetscInt_FMT " x %" PetscInt_FMT ", -%sh_storage)\n",
                                      ht_sparse_ ? "sparse" : "dense", (PetscInt)(ht_sparse_ ? Hts_.nonZeros() : (Ht_.array() != 0.0).count()),
                                      3 * nc_, n_, prefix_.c_str()));
+  if (dense_)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  step: %s (-%smodal_step%s%s)\n", modal_step_on_ ? "modal" : "nodal", prefix_.c_str(),
+                                     modal_step_why_.empty() ? "" : ": ", modal_step_why_.c_str()));
   if (dense_ && modal_state_ >= 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, "  step tangents: %s (-%smodal_tangent%s%s)\n", modal_on_ ? "modal" : "nodal", prefix_.c_str(),
                                      modal_why_.empty() ? "" : ": ", modal_why_.c_str()));

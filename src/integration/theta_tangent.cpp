@@ -36,6 +36,14 @@ PetscErrorCode ThetaIntegrator::StepTangentSource(const Eigen::VectorXd &Ui, con
   tq_ = Fd_;
   tq_.noalias() -= Kd_ * (Ui + 2 * h * t * (1 - t) * dUi + 2 * h * t * t * dUn);
   if (model_->HasDamping()) tq_.noalias() -= Cd_ * ((1 - t) * dUi + t * dUn);
+  if (!nodal_ready_) {
+    // The modal step's set-up: A^-1 = Phi diag(1/a) Phi^T and Y r = Phi diag(1/a) (H^T Phi)^T r.
+    tYm_.noalias() = Phi_.transpose() * tq_;
+    if (nc_ > 0) tYm_.noalias() += Htm_.transpose() * r;
+    tYm_.array() *= ainvm_.array();
+    c.noalias() = Phi_ * tYm_;
+    PetscFunctionReturn(0);
+  }
   c = llt_.solve(tq_);
   if (nc_ > 0) c.noalias() += Y_ * r;
   PetscFunctionReturn(0);
@@ -105,6 +113,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
              "modal step tangent without ModalTangent at this step size");
   if (modal) tvf_ = (ddU.array().colwise() * p1m_.array() + dU.array().colwise() * p2m_.array()).matrix();
   else {
+    PetscCall(EnsureNodal());
     tvf_.resize(n_, k);
     Gemm(P1_, false, ddU, tvf_);
     Gemm(P2_, false, dU, tvf_, 1.0, 1.0);

@@ -253,6 +253,7 @@ PetscErrorCode Shooting::SetUpFor(const Model &model, const SlidingEquilibrium &
   if (!snes_) PetscCall(SetFromOptions());
   model_ = &model;
   ti_    = &ti;
+  ti.SetManySetUps(true); // one step size per period: -theta_modal_step auto takes the modal step where it can
   PetscCall(VecGetLocalSize(model.F, &nloc_));
   for (VecH *v : {&U_, &dU_, &U1_, &dU1_, &wU_, &wdU_, &gU_, &gdU_, &aU_, &adU_, &tmp_, &ZaU_, &ZadU_, &GaU_, &GadU_, &Ue_, &deflgU_, &deflgdU_})
     PetscCall(VecDuplicate(model.F, v->out()));

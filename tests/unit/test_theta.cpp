@@ -500,6 +500,91 @@ TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
   EXPECT_LT(worst_tangent, 1e-12);
 }
 
+TEST(Theta, ModalStepGivesTheNodalStepsTangentsAndSources)
+{
+  // The step in the modal coordinates of (K, M) (-theta_modal_step; the chain's C = c I is diagonal
+  // there) against the nodal one: a 24-cell chain (N = 72, rotated frames), 3000 steps from its
+  // equilibrium with a velocity pattern that opens and slides points, a jump of the state half-way
+  // (the modal kernel must take q from the new U, not keep its own), the h-source of the period
+  // tangent before any nodal matrix exists on the modal side, then nodal tangents (formed on
+  // demand there) every 100th step. Equal to round-off.
+  ChainParams cp;
+  cp.cells  = 24;
+  cp.cell.V = 0.75;
+  Model model;
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  SlidingEquilibrium eq;
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  const PetscInt N = model.Size(), nc = model.contacts.Size();
+  ASSERT_EQ(N, 72);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ms_modal_step", "true"), 0);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ns_modal_step", "false"), 0);
+  test::Integration run[2]; // modal, nodal
+  Eigen::VectorXd   v0(N);
+  for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
+  for (PetscInt c = 0; c < nc; c += 2)
+    for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
+  for (int k = 0; k < 2; ++k) {
+    ASSERT_EQ(run[k].ti.SetOptionsPrefix(k == 0 ? "ms_" : "ns_"), 0);
+    ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
+    ASSERT_EQ(run[k].ti.SetDenseMax(200), 0);
+    ASSERT_EQ(run[k].ti.SetUp(model, 2e-6), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
+    ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
+    SetState(run[k].dU, v0);
+    run[k].r.setZero(3 * nc);
+    for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[(size_t)c];
+  }
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ms_modal_step"), 0);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ns_modal_step"), 0);
+  ASSERT_TRUE(run[0].ti.ModalStep());
+  ASSERT_FALSE(run[1].ti.ModalStep());
+  // The same Delassus matrix from (H^T Phi) diag(1/a) (H^T Phi)^T as from H^T A^-1 H.
+  EXPECT_LT((run[0].ti.Delassus() - run[1].ti.Delassus()).norm(), 1e-13 * run[1].ti.Delassus().norm());
+  std::vector<int> status;
+  int              seen[3] = {0, 0, 0};
+  double           worst_state = 0, worst_tangent = 0, worst_source = -1;
+  Eigen::VectorXd  vloc[2], Ui[2], dUi[2];
+  for (PetscInt i = 0; i < 3000; ++i) {
+    if (i == 1500)
+      for (int k = 0; k < 2; ++k) SetState(run[k].dU, 0.5 * v0); // both jump to the same new state
+    StepInfo info[2];
+    for (int k = 0; k < 2; ++k) {
+      Ui[k] = test::ToDense(run[k].U), dUi[k] = test::ToDense(run[k].dU);
+      ASSERT_EQ(run[k].ti.Step(run[k].U, run[k].dU, run[k].r, &info[k]), 0);
+    }
+    const Eigen::VectorXd u0 = test::ToDense(run[0].U), u1 = test::ToDense(run[1].U);
+    const Eigen::VectorXd v0s = test::ToDense(run[0].dU), v1s = test::ToDense(run[1].dU);
+    worst_state = std::max({worst_state, (u0 - u1).norm() / u1.norm(), (v0s - v1s).norm() / v1s.norm()});
+    run[0].ti.Contact().Status(run[0].r, status);
+    for (int s : status) ++seen[s];
+    if (i == 40) {
+      // dU^{i+1}/dh at the nodal run's step, by Phi diag(1/a) (Phi^T q + (H^T Phi)^T r) on the modal side.
+      Eigen::VectorXd c[2];
+      for (int k = 0; k < 2; ++k) ASSERT_EQ(run[k].ti.StepTangentSource(Ui[1], dUi[1], v1s, run[1].r, c[k]), 0);
+      worst_source = (c[0] - c[1]).norm() / c[1].norm();
+    }
+    if (i % 100 != 99) continue;
+    for (int k = 0; k < 2; ++k) ASSERT_EQ(run[k].ti.Local(run[k].dU, vloc[k]), 0);
+    Eigen::MatrixXd dU[2], ddU[2];
+    dU[0] = Eigen::MatrixXd::Random(N, 3), ddU[0] = Eigen::MatrixXd::Random(N, 3);
+    dU[1] = dU[0], ddU[1] = ddU[0];
+    for (int k = 0; k < 2; ++k) ASSERT_EQ(run[k].ti.StepTangent(run[1].r, vloc[1], dU[k], ddU[k]), 0);
+    worst_tangent = std::max({worst_tangent, (dU[0] - dU[1]).norm() / dU[1].norm(), (ddU[0] - ddU[1]).norm() / ddU[1].norm()});
+  }
+  PetscPrintf(PETSC_COMM_WORLD, "open / stick / slip point-steps %d / %d / %d; modal against nodal step: states %.2e, h-source %.2e, tangents %.2e\n",
+              seen[kOpen], seen[kStick], seen[kSlip], worst_state, worst_source, worst_tangent);
+  EXPECT_GT(seen[kOpen], 0);
+  EXPECT_GT(seen[kSlip], 0);
+  EXPECT_LT(worst_state, 1e-10);
+  EXPECT_GE(worst_source, 0);
+  EXPECT_LT(worst_source, 1e-12);
+  EXPECT_LT(worst_tangent, 1e-12);
+  EXPECT_TRUE(run[0].ti.ModalStep()); // the nodal tangents did not switch the step
+}
+
 TEST(Theta, StepTangentMatchesCentralDifferencesOfTheStepOnEveryStatus)
 {
   // The exact step tangent (statuses held, the closed points' system in 3 n_stick + 2 n_slip

@@ -123,6 +123,23 @@ private:
   VecC                gap_;
 };
 
+// The same step (S4)-(S9) in the modal coordinates q of (K, M), U = Phi q, where C is diagonal there
+// too (ThetaIntegrator::ModalStep): A^-1 B and -h A^-1 K are the diagonals p1m and p2m, A^-1 F is
+// Phi p3m, and A^-1 H = Phi diag(1/a) (H^T Phi)^T. A step reads H^T Phi twice (w_f, then the
+// reactions' velocity) and Phi once (U and dU back from q), as the nodal step reads A^-1 B, A^-1 K
+// and Y: the same words when 3 n_c = N, fewer when 3 n_c < N. Its set-up has no O(N^3) part.
+// Run-time sizes; implemented in theta_modal.cpp.
+struct ModalStepData {
+  const Eigen::MatrixXd *Phi, *PhiInv, *Htm;       // U = Phi q, q = Phi^T M U, H^T Phi
+  const Eigen::VectorXd *p1m, *p2m, *p3m, *ainv;  // diagonals at h; p3m = h diag(1/a) Phi^T F
+  const Eigen::MatrixXd *Ht;                       // H^T, for the gaps from the nodal U (or:)
+  const SparseRowMatrix *Hts;                      // H^T by its non-zeros, or null
+  const Eigen::VectorXd *g0;
+  PetscReal              h, theta;
+  LocalContactSolver    *local;
+};
+std::unique_ptr<DenseStepKernel> MakeModalStepKernel(const ModalStepData &d);
+
 // The compile-time sizes (N, n_c) that get their own instantiation: the 3-DOF reference model and
 // the smallest multi-contact chain (4 cells, a contact on each, H not the identity), which keeps
 // the fixed-size path under the chain tests too. Anything else runs the Eigen::Dynamic kernel.

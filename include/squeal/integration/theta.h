@@ -28,7 +28,9 @@
 // the step becomes memory-bound past a few hundred DOFs: measured crossover between N = 90 and
 // N = 300 (benchmarks/bench_step.cpp). Nothing is allocated per step or per fixed-point pass.
 // The dense step runs in a DenseStepKernel chosen in SetUp (integration/step_kernel.h): compiled for
-// fixed sizes when the model matches one (-theta_fixed_size, default true), run-time sizes otherwise.
+// fixed sizes when the model matches one (-theta_fixed_size, default true), run-time sizes otherwise,
+// or in the modal coordinates of (K, M) where C is diagonal there (-theta_modal_step): then (S1)-(S2)
+// form W from H^T Phi and no N x N matrix (theta_modal.cpp).
 #pragma once
 
 #include "squeal/contact/local_solver.h"
@@ -120,6 +122,12 @@ public:
   // is computed once per model (M, K and C unchanged), the diagonals and H^T Phi once per step size.
   PetscErrorCode ModalTangent(bool *on);
   const Eigen::MatrixXd &ModalBasis() const { return Phi_; }      // U = Phi q
+  // The forward step in the same modal coordinates (-theta_modal_step; theta_modal.cpp): taken, the
+  // set-up of a step size costs O(n_c^2 N) (W from H^T Phi) instead of the O(N^3) of A^-1 B, A^-1 K
+  // and A^-1 H, which are then formed only if a nodal tangent asks for them. Shooting sets up at
+  // every new period: it says so (SetManySetUps), and the auto choice then takes the modal step.
+  bool                   ModalStep() const { return modal_step_on_; }
+  void                   SetManySetUps(bool many) { many_setups_ = many; }
   const Eigen::MatrixXd &ModalInverse() const { return PhiInv_; } // q = Phi^T M U
   // Local quantities x -> H^T x (replicated), e.g. gaps from U or contact velocities from dU.
   PetscErrorCode Local(Vec x, Eigen::VectorXd &out);
@@ -142,6 +150,10 @@ public:
 
 private:
   PetscErrorCode SetUpDense();
+  PetscErrorCode ModalBasisUpdate(); // the basis of (K, M) and modal_state_, for Md_, Kd_, Cd_
+  void           ModalPerStepSize(); // p1m_, p2m_, ainvm_, Htm_, Htmn_ at h_
+  PetscErrorCode ModalStepSetUp();   // decides modal_step_on_; taken: W and p3m_ from the modal quantities
+  PetscErrorCode EnsureNodal();      // P1_, P2_, p3_, Y_ and llt_ when the modal step skipped them
   PetscErrorCode DenseStep(Eigen::Ref<Eigen::VectorXd> U, Eigen::Ref<Eigen::VectorXd> dU, Eigen::VectorXd &r, StepInfo *info);
   void           SetUpKernel(); // after SetUpDense and local_.Setup
   PetscErrorCode StepGeneral(Vec U, Vec dU, Eigen::VectorXd &r, StepInfo *info); // non-native Vecs, gathered dense or sparse
@@ -189,6 +201,12 @@ private:
   Eigen::MatrixXd Phi_, PhiInv_, Htm_, Htmn_; // Htmn_: Htm_'s normal rows
   Eigen::VectorXd mk_, mc_, p1m_, p2m_, ainvm_;
   std::string     modal_why_;
+  PetscInt        modal_step_ = 0;           // -theta_modal_step: 0 auto, 1 false, 2 true
+  bool            modal_step_on_ = false, many_setups_ = false;
+  bool            nodal_ready_   = true;     // P1_, P2_, p3_, Y_, llt_ formed at h_
+  std::string     modal_step_why_;
+  Eigen::VectorXd p3m_;                      // Phi^-1 p3 = h diag(1/a) Phi^T F
+  Eigen::MatrixXd Gt_;                       // diag(1/a)^(1/2) (H^T Phi)^T: W = Gt^T Gt
   Eigen::VectorXd p3_, Fd_, vf_, dU0_;
   PetscMPIInt     size_ = 1;                 // ranks of comm_: above 1 the dense step runs on gathered states
   std::unique_ptr<DenseStepKernel> kernel_; // (S4)-(S9) on the matrices above, sizes fixed at compile time if possible
@@ -210,7 +228,7 @@ private:
   void TangentUnknowns(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end); // tunk_ of a step
   Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tGn_, tdrf_, tWG_, tYr_;
   Eigen::VectorXd tG3_;
-  Eigen::VectorXd tq_;
+  Eigen::VectorXd tq_, tYm_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
   PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,
                                  Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
