@@ -987,6 +987,22 @@ TEST(Floquet, VerdictIsUndecidedWhenTheMarginIsWithinTheError)
 // cycle (682 DOFs, block Arnoldi with -floquet_nev 4): the four largest are two pairs of modulus
 // 0.99977 and 0.99972; the nearest to 1 is 1.28 away, so the trivial one lies below them. With the
 // CB model's trivial 1.000804 the usual advice (refine the step) stands.
+// -floquet_tol_error: block Arnoldi stops at a fraction of the trivial multiplier's distance from 1
+// (the step's own error on every multiplier, the verdict's error bar) when that is above
+// -floquet_tol, taking the Ritz value nearest 1 for the trivial one, at most 1e-4, and not at all
+// when no Ritz value is within 0.1 of 1 (the trivial one not yet, or not, among them).
+TEST(Floquet, ArnoldiStopsAtAFractionOfTheTrivialMultipliersError)
+{
+  using C = std::complex<PetscReal>;
+  const std::vector<C> pad{C(1.000241, 0), C(0.9608, 0.01), C(0.9608, -0.01), C(0.95, 0)};
+  EXPECT_NEAR(FloquetArnoldiTolerance(1e-8, 1e-2, pad), 1e-2 * 2.41e-4, 1e-16);
+  EXPECT_DOUBLE_EQ(FloquetArnoldiTolerance(1e-8, 0.0, pad), 1e-8);          // off
+  EXPECT_DOUBLE_EQ(FloquetArnoldiTolerance(1e-5, 1e-2, pad), 1e-5);         // tol is larger
+  EXPECT_DOUBLE_EQ(FloquetArnoldiTolerance(1e-8, 1e-2, {C(0.98, 0), C(1.05, 0.02)}), 1e-4); // capped
+  EXPECT_DOUBLE_EQ(FloquetArnoldiTolerance(1e-8, 1e-2, {C(1.3, 0), C(0.7, 0)}), 1e-8);       // none near 1
+  EXPECT_DOUBLE_EQ(FloquetArnoldiTolerance(1e-8, 1e-2, {}), 1e-8);
+}
+
 TEST(Floquet, ReportSaysWhenTheTrivialMultiplierIsNotAmongThoseComputed)
 {
   auto report = [](const std::vector<std::complex<PetscReal>> &L, PetscInt trivial) {

@@ -49,6 +49,10 @@ struct FloquetVerdictResult {
   PetscReal   margin, error;
 };
 FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal trivial_error, PetscReal phase_spread = 0);
+// Block Arnoldi's stopping residual (-floquet_tol, -floquet_tol_error): tol, or tol_error times the
+// distance from 1 of the Ritz value nearest it (the trivial multiplier's error, when within 0.1 of
+// 1), if larger, at most 1e-4.
+PetscReal FloquetArnoldiTolerance(PetscReal tol, PetscReal tol_error, const std::vector<std::complex<PetscReal>> &ritz);
 
 class FloquetSolver {
 public:
@@ -61,7 +65,7 @@ public:
   }
   const std::string &OptionsPrefix() const { return prefix_; }
   // -floquet_compute, -floquet_dense_max, -floquet_exact, -floquet_phases, -floquet_bisect_interp,
-  // -floquet_nev, -floquet_block, -floquet_monitor, -floquet_max_dim, -floquet_tol; -shoot_floquet
+  // -floquet_nev, -floquet_block, -floquet_monitor, -floquet_max_dim, -floquet_tol, -floquet_tol_error; -shoot_floquet
   // and -shoot_floquet_* are renamed to them first (PetscOptionsDeprecated).
   PetscErrorCode SetFromOptions();
   // The multipliers of res and the verdict (ASCII viewers only), as part of the shooting's report.
@@ -77,6 +81,9 @@ public:
   PetscReal bisect_interp = 1.0 / 32;
   PetscInt  nev = 6, block = 16, max_dim = 640; // matrix-free route: multipliers; block Arnoldi's columns and basis
   PetscReal tol     = 1e-8;                     // block Arnoldi: relative residual of the nev largest
+  // ... or this fraction of the trivial multiplier's distance from 1, if larger (at most 1e-4): that
+  // distance is the step's own error on the multipliers, the verdict's error bar (0: tol only).
+  PetscReal tol_error = 1e-2;
   PetscBool monitor = PETSC_FALSE;
 
   // The multipliers of the orbit from (U0, dU0) with period T into res (floquet, floquet_at_z0,
@@ -94,7 +101,7 @@ public:
   // The exact-tangent case of it (one phase, dense back end) by block Arnoldi: each tangent
   // integration carries -floquet_block columns, so the step matrices are read once for all
   // of them (matrix-matrix instead of matrix-vector products); no restart, the basis grows until
-  // the nev largest Ritz values have relative residuals below tol.
+  // the nev largest Ritz values have relative residuals below tol (or tol_error |L_trivial - 1|).
   PetscErrorCode BlockArnoldi(std::vector<std::complex<PetscReal>> &mult);
   // A new model may have another size: the one-step shift is rebuilt on first use.
   void Reset() { shiftU_.reset(), shiftdU_.reset(); }
