@@ -22,23 +22,4 @@ struct ShootingCallbacks {
   static PetscErrorCode Converged(SNES snes, PetscInt it, PetscReal, PetscReal, PetscReal fnorm, SNESConvergedReason *reason, void *ctx);
 };
 
-// The theta integrator's contact tolerance loosened to tol for a scope (kept if tol is tighter),
-// restored on leaving it, also on an error: the pre-periods' and Newton's flows.
-class FixedPointTolerance {
-public:
-  FixedPointTolerance(ThetaIntegrator &ti, PetscReal tol) : ti_(ti), kept_(ti.FixedPointTolerance()), max_it_(ti.FixedPointMaxIt())
-  {
-    if (tol > kept_) (void)ti_.SetFixedPoint(tol, max_it_); // valid: positive and finite
-  }
-  ~FixedPointTolerance() { (void)ti_.SetFixedPoint(kept_, max_it_); }
-  FixedPointTolerance(const FixedPointTolerance &)            = delete;
-  FixedPointTolerance &operator=(const FixedPointTolerance &) = delete;
-  PetscReal Tol() const { return ti_.FixedPointTolerance(); }
-
-private:
-  ThetaIntegrator &ti_;
-  const PetscReal  kept_;
-  const PetscInt   max_it_;
-};
-
 } // namespace squeal

@@ -322,21 +322,9 @@ PetscErrorCode Shooting::Residual(Vec x, Vec f)
   }
   // With exact products the Jacobian integrates the tangent along this very flow: keep it.
   record_ = ExactJacobian();
-  PetscErrorCode ierr;
-  {
-    // Far from the cycle the flow's contact problems need not be solved to -theta_fp_tol: to
-    // -shoot_newton_fp_factor times the last residual, no looser than -shoot_pre_fp_tol. The last
-    // residual is the start's return distance before the first. Once it is below eps1 (so from
-    // the iterate that (6.3) accepts on: the orbit written and its multipliers) the integrator's own.
-    const PetscReal last = !hist_res_.empty() ? hist_res_.back() : pre_done_ > 0 ? pre_e_ : 0.0;
-    PetscReal       tol  = ti_->FixedPointTolerance();
-    if (newton_fp_factor > 0 && last >= eps1) tol = std::max(tol, std::min(pre_fp_tol, newton_fp_factor * last));
-    FixedPointTolerance hold(*ti_, tol);
-    ierr = Flow(U_, dU_, T, U1_, dU1_, &last_r_);
-  }
+  PetscErrorCode ierr = Flow(U_, dU_, T, U1_, dU1_, &last_r_);
   record_ = false;
   PetscCall(ierr);
-  res_passes_ += flow_passes_, res_steps_ += steps, last_res_passes_ = flow_passes_;
   if (ExactJacobian()) {
     PetscCall(VecCopy(x, trx_));
     trT_       = T;

@@ -224,7 +224,17 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   } swap{*this, resume || pre_steps <= 0 ? steps : pre_steps};
   PetscInt            coarse_periods = 0; // run at -shoot_pre_steps, once the flow went on at -shoot_steps
   // The contact problems of these flows to -shoot_pre_fp_tol, restored for Newton (also on an error).
-  FixedPointTolerance loose(*ti_, pre_fp_tol);
+  struct FixedPointLoose {
+    ThetaIntegrator &ti;
+    const PetscReal  kept;
+    const PetscInt   max_it;
+    FixedPointLoose(ThetaIntegrator &t, PetscReal loose) : ti(t), kept(t.FixedPointTolerance()), max_it(t.FixedPointMaxIt())
+    {
+      if (loose > kept) (void)ti.SetFixedPoint(loose, max_it); // valid: positive, as -shoot_pre_fp_tol is checked to be
+    }
+    ~FixedPointLoose() { (void)ti.SetFixedPoint(kept, max_it); }
+    PetscReal Tol() const { return ti.FixedPointTolerance(); }
+  } loose{*ti_, pre_fp_tol};
   PetscBool           mon = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_monitor", &mon));
   mon = (PetscBool)(mon || monitor);

@@ -112,11 +112,6 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Contact fixed-point tolerance in the pre-periods' flow (-theta_fp_tol if that is looser; Newton's flows and "
                     "everything after use -theta_fp_tol)",
                     "Shooting", &pre_fp_tol, Range::Positive(), checks);
-  SquealOptionsReal("-newton_fp_factor",
-                    "Newton's flows solve their contact problems to this factor x the last residual ||H||/||Z0|| while it is above "
-                    "-shoot_eps1, between -theta_fp_tol and -shoot_pre_fp_tol; then, and for the orbit and its multipliers, "
-                    "-theta_fp_tol (0: always -theta_fp_tol)",
-                    "Shooting", &newton_fp_factor, Range::NonNegative(), checks);
   SquealOptionsReal("-deflate_shift", "Shift of the deflation operator m (its value far from Z_e)", "Shooting", &deflate_shift,
                     Range::Positive(), checks);
   PetscCall(PetscOptionsReal("-tangent_cache_mb",
@@ -427,7 +422,6 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res          = ShootingResult{};
   T0_          = T0;
   evaluations_ = tangents_ = setups_ = partial_steps_ = pre_done_ = pre_coarse_ = pre_passes_ = pre_steps_run_ = tangent_columns_ = recycled_columns_ = 0;
-  res_passes_ = res_steps_ = last_res_passes_ = 0;
   pre_T_       = T0;
   pre_measured_ = 0, recentred_ = false;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
@@ -510,8 +504,6 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   res.pre_periods         = pre_done_;
   res.pre_coarse_periods  = pre_coarse_;
   res.pre_contact_iterations = PreContactIterations();
-  res.newton_contact_iterations = res_steps_ > 0 ? (PetscReal)res_passes_ / res_steps_ : 0;
-  res.last_contact_iterations   = (PetscReal)last_res_passes_ / steps;
   res.pre_period          = pre_T_;
   res.pre_measured_period = pre_measured_;
   res.bracket_centre      = T0_;
@@ -642,9 +634,6 @@ PetscErrorCode Shooting::View(const ShootingResult &res, PetscViewer viewer) con
   PetscCall(PetscViewerASCIIPushTab(viewer));
   PetscCall(PetscViewerASCIIPrintf(viewer, "limit cycle period %.7f s (%.4f Hz), ||H||/||Z0|| = %.2e\n", (double)res.period,
                                    1 / (double)res.period, (double)res.residual));
-  if (res.newton_contact_iterations > 0)
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Newton's flows: %.1f contact iterations a step (-shoot_newton_fp_factor %g), the orbit's %.1f (-theta_fp_tol)\n",
-                                     (double)res.newton_contact_iterations, (double)newton_fp_factor, (double)res.last_contact_iterations));
   if (res.pre_retries > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "Newton started %" PetscInt_FMT " time(s) more (-shoot_pre_retries), after %" PetscInt_FMT
@@ -702,8 +691,6 @@ PetscErrorCode Shooting::Write(const ShootingResult &res, io::H5Writer &out) con
   PetscCall(out.WriteAttribute("/shooting", "pre_periods", res.pre_periods));
   PetscCall(out.WriteAttribute("/shooting", "pre_coarse_periods", res.pre_coarse_periods));
   PetscCall(out.WriteAttribute("/shooting", "pre_contact_iterations", res.pre_contact_iterations));
-  PetscCall(out.WriteAttribute("/shooting", "newton_contact_iterations", res.newton_contact_iterations));
-  PetscCall(out.WriteAttribute("/shooting", "last_contact_iterations", res.last_contact_iterations));
   PetscCall(out.WriteAttribute("/shooting", "pre_retries", res.pre_retries));
   PetscCall(out.WriteAttribute("/shooting", "trivial_multiplier_index", res.trivial));
   if (!res.floquet.empty()) {

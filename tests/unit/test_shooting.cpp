@@ -743,7 +743,7 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
 }
 
 // -shoot_pre_fp_tol: the pre-periods' flow solves its contact problems to a looser tolerance than
-// the integrator's (-theta_fp_tol), which the orbit's flow gets back. Against pre-periods at the
+// the integrator's (-theta_fp_tol), which Newton's flows get back. Against pre-periods at the
 // integrator's own tolerance: fewer contact iterations a step in them, the integrator's tolerance
 // restored after, and Newton on the same cycle (within the discrete cycle's phase dependence, as above).
 TEST(Shooting, PrePeriodsSolveTheirContactsLooselyAndNewtonAtTheIntegratorsTolerance)
@@ -767,35 +767,6 @@ TEST(Shooting, PrePeriodsSolveTheirContactsLooselyAndNewtonAtTheIntegratorsToler
   EXPECT_LT(res[1].pre_contact_iterations, res[0].pre_contact_iterations - 0.1);
   EXPECT_NEAR(res[1].period / res[0].period, 1.0, 2e-6);
   EXPECT_LE(std::abs(res[1].iterations - res[0].iterations), 1);
-}
-
-// -shoot_newton_fp_factor: Newton's flows far from the cycle solve their contact problems to that
-// factor times the last residual (no looser than -shoot_pre_fp_tol), the orbit's flow (after a
-// residual below eps1) to the integrator's tolerance. Case 1 (V = 3: separation and slip) from the
-// energy estimate, against every flow at -theta_fp_tol: fewer contact iterations a step in Newton's
-// flows, the orbit's flow at the same count, the integrator's tolerance restored, the same cycle.
-TEST(Shooting, NewtonFlowsSolveTheirContactsToTheResidualsScale)
-{
-  ThreeDofParams p;
-  p.V = 3.0;
-  ShootingResult res[2];
-  for (int loose : {0, 1}) {
-    Problem pr(p);
-    pr.sh.Floquet().compute = PETSC_FALSE;
-    pr.sh.pre_fp_tol        = 1e-5;
-    if (!loose) pr.sh.newton_fp_factor = 0;
-    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, res[loose]), 0) << res[loose].reason;
-    EXPECT_TRUE(res[loose].converged);
-    EXPECT_EQ(pr.ti.FixedPointTolerance(), 1e-12) << "the integrator's tolerance was not restored after Newton";
-  }
-  PetscPrintf(PETSC_COMM_WORLD, "Newton's flows: %.3f against %.3f contact iterations a step; the orbit's %.3f against %.3f; %d and %d iterations\n",
-              (double)res[1].newton_contact_iterations, (double)res[0].newton_contact_iterations, (double)res[1].last_contact_iterations,
-              (double)res[0].last_contact_iterations, (int)res[1].iterations, (int)res[0].iterations);
-  EXPECT_LT(res[1].newton_contact_iterations, res[0].newton_contact_iterations - 0.05);
-  EXPECT_NEAR(res[1].last_contact_iterations, res[0].last_contact_iterations, 0.05 * res[0].last_contact_iterations);
-  EXPECT_NEAR(res[1].period / res[0].period, 1.0, 2e-6);
-  EXPECT_LE(std::abs(res[1].iterations - res[0].iterations), 1);
-  EXPECT_LT(res[1].residual, 1e-5);
 }
 
 // Issue 19 item 4: steps per period and pre-periods follow from the model when not given. The

@@ -59,9 +59,6 @@ struct ShootingResult {
   PetscReal                            pre_period  = 0;
   PetscInt                             pre_coarse_periods = 0; // ... of them at -shoot_pre_steps
   PetscReal                            pre_contact_iterations = 0; // ... their contact iterations a step (-shoot_pre_fp_tol)
-  // Newton's function evaluations (their flows): contact iterations a step, and those of the last
-  // one (the orbit's flow, at -theta_fp_tol) alone.
-  PetscReal                            newton_contact_iterations = 0, last_contact_iterations = 0;
   // -shoot_pre_retries taken: Newton restarted after more pre-periods to a tighter return distance.
   PetscInt                             pre_retries = 0;
   // The period of the pre-periods' motion, from its returns to a Poincare section (0: no two
@@ -201,12 +198,6 @@ public:
   // pad 1e-8 took 14.6 contact iterations a step instead of 24.1, the 43 return distances the same to
   // the 4 digits printed (docs/records.md "Pre-periods at a looser contact tolerance").
   PetscReal pre_fp_tol       = 1e-8;
-  // -shoot_newton_fp_factor: Newton's flows from an iterate whose predecessor's residual
-  // ||H||/||Z0|| is r >= -shoot_eps1 solve their contact problems to this factor times r, between
-  // -theta_fp_tol and -shoot_pre_fp_tol (an inexact function far from the root, as Eisenstat-Walker
-  // does for the linear solves); the flows after r < eps1, which give the orbit written and its
-  // multipliers, at -theta_fp_tol. 0: every Newton flow at -theta_fp_tol.
-  PetscReal newton_fp_factor = 1e-4;
   // -shoot_pre_retries: when Newton fails from pre-periods that returned within their tolerance,
   // the flow goes on from where they stopped to a 10 times smaller return distance and Newton starts
   // again from there, up to this many times.
@@ -293,7 +284,6 @@ private:
   PetscInt        pre_done_ = 0; // pre-periods run in the last Solve
   PetscInt        pre_coarse_ = 0; // ... of them at -shoot_pre_steps
   PetscInt        pre_passes_ = 0, pre_steps_run_ = 0; // ... their contact iterations and steps
-  PetscInt        res_passes_ = 0, res_steps_ = 0, last_res_passes_ = 0; // Newton's residual flows, the same
   PetscReal       PreContactIterations() const { return pre_steps_run_ > 0 ? (PetscReal)pre_passes_ / pre_steps_run_ : 0; }
   // The values SetUpFor chose for steps, pre_periods, pre_steps, pre_tol (PETSC_DECIDE given), chosen again for
   // the next model unless changed since; and whether they were chosen (reported once per solve).
