@@ -153,6 +153,7 @@ PetscErrorCode EnergyAnalysis::SetUpImpacts(const Model &model, const SlidingEqu
   est.impact_steps = impact_steps == PETSC_DECIDE ? Shooting::DefaultSteps(model.Size()) : impact_steps;
   ThetaIntegrator ti(comm_);
   PetscCall(ti.SetFromOptions());
+  ti.SetDelassusOnly(true);
   PetscCall(ti.SetUp(model, period_ / est.impact_steps));
   // Every rank holds the same W (replicated), so every rank keeps the same entries.
   const PetscInt        nc = model.contacts.Size();

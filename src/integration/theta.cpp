@@ -748,8 +748,9 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
                                      ht_sparse_ ? "sparse" : "dense", (PetscInt)(ht_sparse_ ? Hts_.nonZeros() : (Ht_.array() != 0.0).count()),
                                      3 * nc_, n_, prefix_.c_str()));
   if (dense_)
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  step: %s (-%smodal_step%s%s)\n", modal_step_on_ ? "modal" : "nodal", prefix_.c_str(),
-                                     modal_step_why_.empty() ? "" : ": ", modal_step_why_.c_str()));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  step: %s (-%smodal_step %s%s%s)\n", modal_step_on_ ? "modal" : "nodal", prefix_.c_str(),
+                                     modal_step_ == 0 ? "auto" : modal_step_ == 1 ? "false" : "true", modal_step_why_.empty() ? "" : ": ",
+                                     modal_step_why_.c_str()));
   if (dense_ && modal_state_ >= 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, "  step tangents: %s (-%smodal_tangent%s%s)\n", modal_on_ ? "modal" : "nodal", prefix_.c_str(),
                                      modal_why_.empty() ? "" : ": ", modal_why_.c_str()));

@@ -137,26 +137,30 @@ PetscErrorCode ThetaIntegrator::ModalStepSetUp()
   // (shared with the modal tangents), so models below 64 DOFs keep the nodal step.
   const double n = (double)n_, m3 = 3.0 * nc_;
   const double modal = 2 * m3 * n + n * n, nodal = 2 * n * n + m3 * n;
-  if (modal_step_ == 1) modal_step_why_ = "-" + prefix_ + "modal_step false";
-  else if (modal_step_ == 0 && n_ < 64) modal_step_why_ = "fewer than 64 DOFs";
-  else if (modal_step_ == 0 && !(modal <= nodal && (many_setups_ || modal <= 0.8 * nodal))) {
-    char b[160];
-    std::snprintf(b, sizeof b, "no gain: %.3g words read a step against %.3g nodal%s", modal, nodal,
-                  many_setups_ ? "" : ", one step size");
-    modal_step_why_ = b;
-  } else {
+  modal_step_why_.clear();
+  bool want = modal_step_ == 2;
+  if (modal_step_ == 0) {
+    if (n_ < 64) modal_step_why_ = "fewer than 64 DOFs";
+    else if (delassus_only_) modal_step_why_ = "no steps (the Delassus matrix only)";
+    else if (!(modal <= nodal && (many_setups_ || modal <= 0.8 * nodal))) {
+      char b[160];
+      std::snprintf(b, sizeof b, "no gain: %.3g words read a step against %.3g nodal%s", modal, nodal, many_setups_ ? "" : ", one step size");
+      modal_step_why_ = b;
+    } else want = true;
+  }
+  if (want) {
     PetscCall(ModalBasisUpdate());
     // The step itself, unlike a tangent, sets the cycle: C must be diagonal to round-off there.
-    if (!(modal_state_ == 1 && modal_offdiag_ <= 1e-12)) {
+    modal_step_on_ = modal_state_ == 1 && modal_offdiag_ <= 1e-12;
+    if (!modal_step_on_) {
       char b[160];
       std::snprintf(b, sizeof b, "C is not diagonal in the modal basis (off-diagonal %.2g of its diagonal)", (double)modal_offdiag_);
       modal_step_why_ = b;
       PetscCheck(modal_step_ != 2 || modal_state_ == 1, comm_, kErrInput, "option -%smodal_step true: %s", prefix_.c_str(), b);
-      if (modal_step_ == 2) modal_step_on_ = true; // asked for, with C diagonal to 1e-9: its off-diagonal ignored
-    } else modal_step_on_ = true;
+      if (modal_step_ == 2) modal_step_on_ = true; // asked for, C diagonal to 1e-9: its off-diagonal ignored (said by View)
+    }
   }
   if (!modal_step_on_) PetscFunctionReturn(0);
-  if (modal_step_ != 2 || modal_offdiag_ <= 1e-12) modal_step_why_.clear();
   ModalPerStepSize();
   // p3 = h A^-1 F = Phi (h diag(1/a) Phi^T F); W = H^T A^-1 H = (H^T Phi) diag(1/a) (H^T Phi)^T,
   // a product of 3 n_c x N by its transpose instead of the N^3-sized solves of the nodal set-up.
@@ -197,7 +201,7 @@ public:
   explicit ModalStepKernel(const ModalStepData &d)
     : n_(d.Phi->rows()), nc_(d.g0->size()), h_(d.h), t_(d.theta), d_(d)
   {
-    QD_.setZero(n_, 2), UD_.setZero(n_, 2), mf_.resize(n_), dU0_.resize(n_), wf_.resize(3 * nc_), gap_.resize(nc_), ry_.resize(n_);
+    QD_.setZero(n_, 2), Uo_.setZero(n_), dUo_.setZero(n_), mf_.resize(n_), dU0_.resize(n_), wf_.resize(3 * nc_), gap_.resize(nc_), ry_.resize(n_);
   }
 
   void Step(PetscReal *u, PetscReal *du, Eigen::VectorXd &r, LocalSolveInfo *info) override
@@ -207,7 +211,7 @@ public:
     // q from U once per trajectory: a step continuing the last one's output keeps its own q (the
     // caller may have put any other state in between).
     const size_t bytes = sizeof(PetscReal) * (size_t)n_;
-    if (!valid_ || std::memcmp(u, UD_.col(0).data(), bytes) != 0 || std::memcmp(du, UD_.col(1).data(), bytes) != 0) {
+    if (!valid_ || std::memcmp(u, Uo_.data(), bytes) != 0 || std::memcmp(du, dUo_.data(), bytes) != 0) {
       QD_.col(0).noalias() = *d_.PhiInv * U;
       QD_.col(1).noalias() = *d_.PhiInv * dU;
       valid_               = true;
@@ -230,11 +234,16 @@ public:
       ry_.noalias() = d_.Htm->transpose() * R;                    // (S8): Phi^-1 h Y r = h diag(1/a) (H^T Phi)^T r
       mf_.array() += h * d_.ainv->array() * ry_.array();
     }
-    q += h * (t * mf_ + (1 - t) * dq); // (S9)
+    // (S9) in both coordinates: U from the nodal velocities (as the nodal step), so that only dU
+    // needs a product by Phi (a second column would double the multiply-adds of a model whose
+    // matrices stay in cache: the half brake's 300 000-step transient took longer than nodal).
+    // U and Phi q then differ by the round-off of their own sums, which does not grow.
+    q += h * (t * mf_ + (1 - t) * dq);
     dq = mf_;
-    UD_.noalias() = *d_.Phi * QD_;     // one pass over Phi for U and dU
-    U             = UD_.col(0);
-    dU            = UD_.col(1);
+    U += (h * (1 - t)) * dU;
+    dU.noalias() = *d_.Phi * mf_;
+    U += (h * t) * dU;
+    Uo_ = U, dUo_ = dU;
   }
   bool FixedSize() const override { return false; }
 
@@ -243,7 +252,8 @@ private:
   const PetscReal     h_, t_;
   const ModalStepData d_;
   bool                valid_ = false;
-  Eigen::MatrixXd     QD_, UD_; // (q, dq) and the (U, dU) last returned
+  Eigen::MatrixXd     QD_;      // (q, dq)
+  Eigen::VectorXd     Uo_, dUo_; // the (U, dU) last returned
   Eigen::VectorXd     mf_, dU0_, wf_, gap_, ry_;
 };
 

@@ -126,8 +126,9 @@ private:
 // The same step (S4)-(S9) in the modal coordinates q of (K, M), U = Phi q, where C is diagonal there
 // too (ThetaIntegrator::ModalStep): A^-1 B and -h A^-1 K are the diagonals p1m and p2m, A^-1 F is
 // Phi p3m, and A^-1 H = Phi diag(1/a) (H^T Phi)^T. A step reads H^T Phi twice (w_f, then the
-// reactions' velocity) and Phi once (U and dU back from q), as the nodal step reads A^-1 B, A^-1 K
-// and Y: the same words when 3 n_c = N, fewer when 3 n_c < N. Its set-up has no O(N^3) part.
+// reactions' velocity) and Phi once (dU back from q; U by (S9) from the nodal velocities), as the
+// nodal step reads A^-1 B, A^-1 K and Y: the same words when 3 n_c = N, fewer when 3 n_c < N. Its
+// set-up has no O(N^3) part.
 // Run-time sizes; implemented in theta_modal.cpp.
 struct ModalStepData {
   const Eigen::MatrixXd *Phi, *PhiInv, *Htm;       // U = Phi q, q = Phi^T M U, H^T Phi

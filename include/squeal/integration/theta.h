@@ -128,6 +128,9 @@ public:
   // every new period: it says so (SetManySetUps), and the auto choice then takes the modal step.
   bool                   ModalStep() const { return modal_step_on_; }
   void                   SetManySetUps(bool many) { many_setups_ = many; }
+  // The caller wants W alone and takes no step (the energy estimate's impact losses): auto keeps the
+  // nodal set-up, which needs no eigensolve.
+  void                   SetDelassusOnly(bool only) { delassus_only_ = only; }
   const Eigen::MatrixXd &ModalInverse() const { return PhiInv_; } // q = Phi^T M U
   // Local quantities x -> H^T x (replicated), e.g. gaps from U or contact velocities from dU.
   PetscErrorCode Local(Vec x, Eigen::VectorXd &out);
@@ -202,7 +205,7 @@ private:
   Eigen::VectorXd mk_, mc_, p1m_, p2m_, ainvm_;
   std::string     modal_why_;
   PetscInt        modal_step_ = 0;           // -theta_modal_step: 0 auto, 1 false, 2 true
-  bool            modal_step_on_ = false, many_setups_ = false;
+  bool            modal_step_on_ = false, many_setups_ = false, delassus_only_ = false;
   bool            nodal_ready_   = true;     // P1_, P2_, p3_, Y_, llt_ formed at h_
   std::string     modal_step_why_;
   Eigen::VectorXd p3m_;                      // Phi^-1 p3 = h diag(1/a) Phi^T F
