@@ -78,6 +78,41 @@ double LinearError(double theta, PetscInt steps, bool dense)
   return (z.head(3) - ex.head(3)).norm() / ex.head(3).norm();
 }
 
+// The 24-cell chain of the back-end comparisons below (N = 72, a contact on every cell, rotated
+// frames, so 1 to 2 non-zeros in a row of H^T), from its sliding equilibrium with a velocity
+// pattern that opens and slides points, set up in two integrators (prefix null: the default
+// "theta_") at h = 2e-6 on the dense back end.
+void ChainRuns(Model &model, SlidingEquilibrium &eq, Eigen::VectorXd &v0, test::Integration (&run)[2], const char *const (&prefix)[2])
+{
+  ChainParams cp;
+  cp.cells  = 24;
+  cp.cell.V = 0.75;
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+  EquilibriumSolver eqs(PETSC_COMM_WORLD);
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  const PetscInt N = model.Size(), nc = model.contacts.Size();
+  ASSERT_EQ(N, 72);
+  ASSERT_EQ(nc, 24);
+  v0.resize(N);
+  for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
+  for (PetscInt c = 0; c < nc; c += 2) // every other point starts at its surface's speed
+    for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
+  for (int k = 0; k < 2; ++k) {
+    if (prefix[k]) {
+      ASSERT_EQ(run[k].ti.SetOptionsPrefix(prefix[k]), 0);
+    }
+    ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
+    ASSERT_EQ(run[k].ti.SetDenseMax(200), 0); // the dense back end also under -theta_dense_max 0 (ctest unit_tests_np2_sparse)
+    ASSERT_EQ(run[k].ti.SetUp(model, 2e-6), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
+    ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
+    ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
+    SetState(run[k].dU, v0);
+    run[k].r.setZero(3 * nc);
+    for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[(size_t)c];
+  }
+}
+
 } // namespace
 
 TEST(Theta, LinearConvergenceOrders)
@@ -433,37 +468,13 @@ TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
   // its equilibrium with a velocity pattern that opens and slides points, and at every 100th step a
   // tangent of one column and of a block of four. Equal to round-off (measured: bit for bit, as a
   // row's one or two products summed with exact zeros give the same sum).
-  ChainParams cp;
-  cp.cells  = 24;
-  cp.cell.V = 0.75;
-  Model model;
-  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
-  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  Model              model;
   SlidingEquilibrium eq;
-  ASSERT_EQ(eqs.Solve(model, eq), 0);
-  const PetscInt N = model.Size(), nc = model.contacts.Size();
-  ASSERT_EQ(N, 72);
-  ASSERT_EQ(nc, 24);
+  Eigen::VectorXd    v0;
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-hd_h_storage", "dense"), 0);
   test::Integration run[2]; // auto (sparse here), dense
-  Eigen::VectorXd v0(N);
-  for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
-  for (PetscInt c = 0; c < nc; c += 2) // every other point starts at its surface's speed
-    for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
-  for (int k = 0; k < 2; ++k) {
-    if (k == 1) {
-      ASSERT_EQ(run[k].ti.SetOptionsPrefix("hd_"), 0);
-    }
-    ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
-    ASSERT_EQ(run[k].ti.SetDenseMax(200), 0); // the dense back end also under -theta_dense_max 0 (ctest unit_tests_np2_sparse)
-    ASSERT_EQ(run[k].ti.SetUp(model, 2e-6), 0);
-    ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
-    ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
-    ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
-    SetState(run[k].dU, v0);
-    run[k].r.setZero(3 * nc);
-    for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[(size_t)c];
-  }
+  ASSERT_NO_FATAL_FAILURE(ChainRuns(model, eq, v0, run, {nullptr, "hd_"}));
+  const PetscInt N = model.Size();
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-hd_h_storage"), 0);
   ASSERT_TRUE(run[0].ti.Dense() && run[1].ti.Dense());
   ASSERT_TRUE(run[0].ti.SparseHt());
@@ -508,35 +519,14 @@ TEST(Theta, ModalStepGivesTheNodalStepsTangentsAndSources)
   // (the modal kernel must take q from the new U, not keep its own), the h-source of the period
   // tangent before any nodal matrix exists on the modal side, then nodal tangents (formed on
   // demand there) every 100th step. Equal to round-off.
-  ChainParams cp;
-  cp.cells  = 24;
-  cp.cell.V = 0.75;
-  Model model;
-  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
-  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  Model              model;
   SlidingEquilibrium eq;
-  ASSERT_EQ(eqs.Solve(model, eq), 0);
-  const PetscInt N = model.Size(), nc = model.contacts.Size();
-  ASSERT_EQ(N, 72);
+  Eigen::VectorXd    v0;
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ms_modal_step", "true"), 0);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ns_modal_step", "false"), 0);
   test::Integration run[2]; // modal, nodal
-  Eigen::VectorXd   v0(N);
-  for (PetscInt i = 0; i < N; ++i) v0[i] = i % 3 == 2 ? 0.05 * std::sin(1.3 * (double)i) : 0.6 * std::sin(0.7 * (double)i + 0.3);
-  for (PetscInt c = 0; c < nc; c += 2)
-    for (int a = 0; a < 3; ++a) v0[3 * c + a] = model.contacts.Speed(c) * model.contacts.points[(size_t)c].t[a];
-  for (int k = 0; k < 2; ++k) {
-    ASSERT_EQ(run[k].ti.SetOptionsPrefix(k == 0 ? "ms_" : "ns_"), 0);
-    ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
-    ASSERT_EQ(run[k].ti.SetDenseMax(200), 0);
-    ASSERT_EQ(run[k].ti.SetUp(model, 2e-6), 0);
-    ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
-    ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
-    ASSERT_EQ(VecDuplicate(eq.U, &run[k].dU), 0);
-    SetState(run[k].dU, v0);
-    run[k].r.setZero(3 * nc);
-    for (PetscInt c = 0; c < nc; ++c) run[k].r[3 * c + kN] = eq.N[(size_t)c];
-  }
+  ASSERT_NO_FATAL_FAILURE(ChainRuns(model, eq, v0, run, {"ms_", "ns_"}));
+  const PetscInt N = model.Size();
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ms_modal_step"), 0);
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ns_modal_step"), 0);
   ASSERT_TRUE(run[0].ti.ModalStep());
