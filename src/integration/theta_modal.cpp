@@ -222,14 +222,7 @@ public:
       Eigen::Map<Eigen::VectorXd> R(r.data(), 3 * nc_);
       dU0_ = U + h * (1 - t) * dU;
       wf_.noalias() = *d_.Htm * mf_; // (S5)
-      if (d_.Hts)
-        for (Eigen::Index c = 0; c < nc_; ++c) {
-          PetscReal g = 0;
-          for (SparseRowMatrix::InnerIterator it(*d_.Hts, 3 * c + kN); it; ++it) g += it.value() * dU0_[it.index()];
-          gap_[c] = g + (*d_.g0)[c];
-        }
-      else
-        for (Eigen::Index c = 0; c < nc_; ++c) gap_[c] = d_.Ht->row(3 * c + kN).dot(dU0_) + (*d_.g0)[c];
+      NormalGaps(d_.Hts, *d_.Ht, dU0_, *d_.g0, gap_);
       *info = d_.local->SolveSized<Eigen::Dynamic>(wf_, gap_, R); // (S6)-(S7)
       ry_.noalias() = d_.Htm->transpose() * R;                    // (S8): Phi^-1 h Y r = h diag(1/a) (H^T Phi)^T r
       mf_.array() += h * d_.ainv->array() * ry_.array();

@@ -29,6 +29,21 @@ struct DenseStepData {
   LocalContactSolver    *local;
 };
 
+// (S5)'s gaps g~_n = H_n^T dU0 + g0 from H^T's normal rows: by their non-zeros (Hts) or dense (Ht).
+// Shared by the nodal and the modal kernels, so that both sum in the same order.
+template <class MatH, class VecU, class VecG0, class VecG>
+EIGEN_ALWAYS_INLINE void NormalGaps(const SparseRowMatrix *Hts, const MatH &Ht, const VecU &dU0, const VecG0 &g0, VecG &gap)
+{
+  if (Hts)
+    for (Eigen::Index c = 0; c < gap.size(); ++c) {
+      PetscReal g = 0;
+      for (SparseRowMatrix::InnerIterator it(*Hts, 3 * c + kN); it; ++it) g += it.value() * dU0[it.index()];
+      gap[c] = g + g0[c];
+    }
+  else
+    for (Eigen::Index c = 0; c < gap.size(); ++c) gap[c] = Ht.row(3 * c + kN).dot(dU0) + g0[c];
+}
+
 class DenseStepKernel {
 public:
   virtual ~DenseStepKernel() = default;
@@ -77,17 +92,13 @@ public:
       if constexpr (N == Eigen::Dynamic) {
         if (Hts_) {
           wf.noalias() = *Hts_ * vf; // (S5)
-          for (Eigen::Index c = 0; c < gap.size(); ++c) {
-            PetscReal g = 0;
-            for (SparseRowMatrix::InnerIterator it(*Hts_, 3 * c + kN); it; ++it) g += it.value() * dU0[it.index()];
-            gap[c] = g + g0_[c];
-          }
+          NormalGaps(Hts_, Ht_, dU0, g0_, gap);
           local = true;
         }
       }
       if (!local) {
         wf.noalias() = Ht_ * vf; // (S5)
-        for (Eigen::Index c = 0; c < gap.size(); ++c) gap[c] = Ht_.row(3 * c + kN).dot(dU0) + g0_[c];
+        NormalGaps(nullptr, Ht_, dU0, g0_, gap);
       }
       *info = local_->SolveSized<NC>(wf, gap, R); // (S6)-(S7)
       dU0   = dU;
