@@ -27,7 +27,8 @@ grep -A1 "Craig-Bampton reduction" "$tmp/out" | sed 's/^/  /'
 sed -n '/Summary of Stages/,/^---/p' "$tmp/log" |
   sed -n 's/^ *[0-9]*: *\(.*\): \([0-9.e+-]*\) .*/\1 \2/p' |
   awk '{t = $NF; $NF = ""; if (t > 0.005) printf "  stage %-18s %9.2f s\n", $0, t}'
-# Events inside the Shooting stage: pre-periods, Newton (SNESSolve), Floquet, and the integrations.
-awk '/^(ShootPrePeriods|SNESSolve|ShootFloquet|ShootTangentFlow|ShootFlow) +[0-9]/ {printf "  event %-18s %9.2f s  (%d calls)\n", $1, $4, $2}' "$tmp/log"
+# Events inside the Shooting stage: pre-periods, Newton (SNESSolve), Floquet, the integrations, and
+# the linear preconditioner (its monodromy and factor).
+awk '/^(ShootPrePeriods|SNESSolve|ShootFloquet|ShootTangentFlow|ShootFlow|ShootLinearPC) +[0-9]/ {printf "  event %-18s %9.2f s  (%d calls)\n", $1, $4, $2}' "$tmp/log"
 grep -E "^shooting: (start|converged)|limit cycle period|Floquet multipliers|power balance" "$tmp/out" | sed 's/^/  /'
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -8,7 +8,7 @@ namespace squeal {
 // -log_view events: the parts of a shooting run (SNESSolve is PETSc's own), registered by
 // Shooting::SetFromOptions.
 namespace shoot_ev {
-extern PetscLogEvent pre, floquet, tangent, flow;
+extern PetscLogEvent pre, floquet, tangent, flow, linear_pc;
 } // namespace shoot_ev
 
 // SNES callbacks: C functions that reach the Shooting object through their context (newton.cpp).

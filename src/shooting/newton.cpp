@@ -66,7 +66,8 @@ PetscErrorCode ShootingCallbacks::DenseSolve(PC pc, Vec v, Vec y)
 
 void Shooting::BasePreconditioner(const Eigen::MatrixXd &z, Eigen::MatrixXd &y) const
 {
-  y = jlu_.solve(z);
+  if (jdense_) y = jlu_.solve(z);
+  else jpc_.Solve(z, y);
   if (defl_m_ > 0) y /= defl_m_; // (m J)^-1: the rank-one part of the deflated Jacobian is left to GMRES
 }
 

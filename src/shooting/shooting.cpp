@@ -14,7 +14,7 @@
 namespace squeal {
 
 namespace shoot_ev {
-PetscLogEvent pre = 0, floquet = 0, tangent = 0, flow = 0;
+PetscLogEvent pre = 0, floquet = 0, tangent = 0, flow = 0, linear_pc = 0;
 } // namespace shoot_ev
 
 namespace {
@@ -26,6 +26,7 @@ PetscErrorCode RegisterEvents()
   PetscCall(PetscLogEventRegister("ShootFloquet", SNES_CLASSID, &shoot_ev::floquet));
   PetscCall(PetscLogEventRegister("ShootTangentFlow", SNES_CLASSID, &shoot_ev::tangent));
   PetscCall(PetscLogEventRegister("ShootFlow", SNES_CLASSID, &shoot_ev::flow));
+  PetscCall(PetscLogEventRegister("ShootLinearPC", SNES_CLASSID, &shoot_ev::linear_pc));
   PetscFunctionReturn(0);
 }
 } // namespace

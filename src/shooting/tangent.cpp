@@ -278,26 +278,44 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
 {
   const PetscInt n2 = 2 * N_;
   PetscFunctionBeginUser;
+  // -log_view's ShootLinearPC: the monodromy (at the first Jacobian of a start) and the factor or
+  // its update, not the period column's tangent integration between them (ShootTangentFlow). The
+  // monodromy first: its temporaries (five matrices of order 2N) are gone before the tangent
+  // integration keeps the step factors of the new flow (-shoot_tangent_cache_mb).
   if (Mlin_.rows() != n2) {
     // The steady-sliding linearisation's monodromy (integration/monodromy.h), at the equilibrium
     // reactions: every point closed and sliding, slip direction against V_c.
+    PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
     PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_));
+    jpc_.Reset();
+    PetscCall(PetscLogEventEnd(shoot_ev::linear_pc, 0, 0, 0, 0));
   }
   // The period column is exact (one tangent integration of one column); the border is the anchor's.
   Eigen::MatrixXd    dT1;
   Eigen::RowVectorXd dT = Eigen::RowVectorXd::Ones(1);
   PetscCall(TangentFlow(x, Eigen::MatrixXd::Zero(n2, 1), dT, dT1));
-  Jd_.setZero(n2 + 1, n2 + 1);
-  Jd_.topLeftCorner(n2, n2) = Mlin_;
-  Jd_.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
-  Jd_.col(n2).head(n2) = dT1.col(0);
+  PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
+  Eigen::VectorXd col(n2 + 1), row = Eigen::VectorXd::Zero(n2 + 1);
+  col.head(n2) = dT1.col(0);
   if (anchored_) {
-    Eigen::VectorXd g(n2);
-    PetscCall(Full(GaU_, g.head(N_)));
-    PetscCall(Full(GadU_, g.tail(N_)));
-    Jd_.row(n2).head(n2) = g.transpose();
-  } else Jd_(n2, n2) = 1.0; // no phase row yet: keep the preconditioner regular
-  jlu_.compute(Jd_);
+    PetscCall(Full(GaU_, row.head(N_)));
+    PetscCall(Full(GadU_, row.segment(N_, N_)));
+    col[n2] = 0;
+  } else row[n2] = col[n2] = 1.0; // no phase row yet: keep the preconditioner regular
+  // Mlin - I is the same at every Newton iteration of a start; only the border moves. The first
+  // Jacobian factorises the whole, the later ones update its border (BorderedLU). Not from a
+  // factor without the phase row: Mlin - I alone can be nearly singular (a multiplier of the
+  // linearisation near 1 close to the threshold), and the update would carry that into every solve.
+  if (!jpc_.Factored() || !jpc_anchored_ || !jpc_.SetBorder(col, row)) {
+    Eigen::MatrixXd J(n2 + 1, n2 + 1);
+    J.topLeftCorner(n2, n2) = Mlin_;
+    J.topLeftCorner(n2, n2).diagonal().array() -= 1.0;
+    J.col(n2)               = col;
+    J.row(n2)               = row.transpose();
+    jpc_.Factor(std::move(J));
+    jpc_anchored_ = anchored_;
+  }
+  PetscCall(PetscLogEventEnd(shoot_ev::linear_pc, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 

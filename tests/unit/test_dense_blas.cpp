@@ -1,9 +1,11 @@
 // Dense products and LU solves through BLAS (core/dense_blas.h) against sums written out here.
+#include "squeal/core/bordered_lu.h"
 #include "squeal/core/dense_blas.h"
 
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 using namespace squeal;
@@ -75,4 +77,50 @@ TEST(DenseBlas, LuSolveSolvesThePermutedSystem)
     const double res = (A * X - B).norm() / (A.norm() * X.norm());
     EXPECT_LT(res, 1e-14) << n << " right-hand sides";
   }
+}
+
+// The bordered LU (core/bordered_lu.h): after the factor of one bordered matrix, solves with other
+// borders (a rank-2 update) against Eigen's LU of each whole matrix, on an A like shooting's
+// (a contraction minus I, one eigenvalue of the contraction near 1 so that A alone is ill-
+// conditioned and the border regularises it). A border that makes J singular is refused.
+TEST(BorderedLU, BorderUpdatesSolveAsTheWholeMatrixsLU)
+{
+  const Eigen::Index n = 60;
+  std::srand(7);
+  Eigen::MatrixXd Q = Eigen::MatrixXd::Random(n, n).householderQr().householderQ();
+  Eigen::VectorXd lam = Eigen::VectorXd::LinSpaced(n, 0.1, 0.9);
+  lam[0]              = 1 - 1e-6; // the weakly damped mode
+  const Eigen::MatrixXd A = Q * lam.asDiagonal() * Q.transpose() - Eigen::MatrixXd::Identity(n, n);
+  const auto bordered = [&](const Eigen::VectorXd &col, const Eigen::VectorXd &row) {
+    Eigen::MatrixXd J(n + 1, n + 1);
+    J.topLeftCorner(n, n) = A, J.col(n) = col, J.row(n) = row.transpose();
+    return J;
+  };
+  Eigen::VectorXd col = Eigen::VectorXd::Zero(n + 1), row = Eigen::VectorXd::Zero(n + 1);
+  col.head(n) = Q.col(0) + 0.1 * Eigen::VectorXd::Random(n); // nearly A's null direction, as dZ/dT is
+  row.head(n) = Q.col(0) + 0.1 * Eigen::VectorXd::Random(n); // the phase row, corner 0
+  BorderedLU lu;
+  EXPECT_FALSE(lu.Factored());
+  lu.Factor(bordered(col, row));
+  ASSERT_TRUE(lu.Factored());
+  const Eigen::MatrixXd z = Eigen::MatrixXd::Random(n + 1, 3);
+  Eigen::MatrixXd       y;
+  for (int k = 0; k < 5; ++k) {
+    if (k > 0) {
+      col.head(n) += 0.3 * Eigen::VectorXd::Random(n);
+      row.head(n) = Q.col(0) + 0.2 * k * Eigen::VectorXd::Random(n);
+      ASSERT_TRUE(lu.SetBorder(col, row)) << "border " << k;
+    }
+    const Eigen::MatrixXd J   = bordered(col, row);
+    const Eigen::MatrixXd ref = J.partialPivLu().solve(z);
+    lu.Solve(z, y);
+    EXPECT_LT((y - ref).norm(), 1e-13 * ref.norm()) << "border " << k;
+    EXPECT_LT((J * y - z).norm(), 1e-15 * (J.norm() * y.norm())) << "border " << k;
+  }
+  // The last row a combination of the rows above: J singular, the update refused.
+  Eigen::VectorXd bad(n + 1);
+  bad.head(n) = A.row(3).transpose() + A.row(5).transpose();
+  bad[n]      = col[3] + col[5];
+  col[n]      = bad[n];
+  EXPECT_FALSE(lu.SetBorder(col, bad));
 }

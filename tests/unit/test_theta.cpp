@@ -1,6 +1,7 @@
 // The non-smooth theta-method: linear accuracy and order against the exact solution, inelastic
 // impact, stick, both reference limit cycles with their energy balance, and extreme settings.
 #include "dense.h"
+#include "squeal/integration/monodromy.h"
 #include "squeal/integration/transient.h"
 #include "squeal/model/builders.h"
 
@@ -668,5 +669,32 @@ TEST(Theta, StepTangentMatchesCentralDifferencesOfTheStepOnEveryStatus)
     EXPECT_GT(seen[kSlip], 0);
     EXPECT_LT(worst, 1e-6);
     VecDestroy(&U), VecDestroy(&dU);
+  }
+}
+
+// The sliding linearisation's monodromy (integration/monodromy.h) by binary powering through BLAS
+// against the step tangent multiplied in one step at a time (Eigen): the 24-cell chain (2N = 144),
+// 1, 6 and 200 steps (the last two start the powering with a copy of a power, not a product).
+TEST(Theta, LinearMonodromyIsTheStepTangentToTheStepsPower)
+{
+  Model              model;
+  SlidingEquilibrium eq;
+  Eigen::VectorXd    v0;
+  test::Integration  run[2];
+  ASSERT_NO_FATAL_FAILURE(ChainRuns(model, eq, v0, run, {nullptr, nullptr}));
+  const Eigen::Index N = model.Size(), n2 = 2 * N;
+  const Eigen::VectorXd r0 = run[0].r; // the equilibrium's reactions: every point closed and sliding
+  Eigen::MatrixXd dU = Eigen::MatrixXd::Zero(N, n2), ddU = Eigen::MatrixXd::Zero(N, n2);
+  dU.leftCols(N).setIdentity();
+  ddU.rightCols(N).setIdentity();
+  ASSERT_EQ(run[0].ti.StepTangent(r0, Eigen::VectorXd::Zero(r0.size()), dU, ddU), 0);
+  Eigen::MatrixXd S(n2, n2);
+  S << dU, ddU;
+  for (PetscInt steps : {1, 6, 200}) {
+    Eigen::MatrixXd ref = Eigen::MatrixXd::Identity(n2, n2), P;
+    for (PetscInt i = 0; i < steps; ++i) ref = S * ref;
+    ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, P), 0);
+    ASSERT_EQ(P.rows(), n2);
+    EXPECT_LT((P - ref).norm(), 1e-12 * ref.norm()) << steps << " steps";
   }
 }

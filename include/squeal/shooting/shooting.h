@@ -22,6 +22,7 @@
 // SNES callbacks), tangent.cpp (flows, tangent flows, the dense bordered Jacobian, the linearised preconditioner).
 #pragma once
 
+#include "squeal/core/bordered_lu.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/gather.h"
 #include "squeal/floquet/floquet.h"
@@ -263,6 +264,8 @@ private:
   bool            jdense_ = false; // this solve uses the dense bordered Jacobian
   bool            jlinear_ = false; // ... or the linearised-monodromy preconditioner (-shoot_linear_pc)
   Eigen::MatrixXd Mlin_;            // its monodromy, built at the first Jacobian of a solve
+  BorderedLU      jpc_;             // the bordered Mlin_ - I, factorised once per start
+  bool            jpc_anchored_ = false; // its factor has the phase row
   PetscErrorCode  BuildLinearPreconditioner(Vec x);
   // Recycled subspace (newton.cpp): P^-1 z + Zc Uc^T z is exact on span(S), S the orthonormal
   // recycled directions (natural order, 2N + 1 rows), from Y = J S computed in one block product.
