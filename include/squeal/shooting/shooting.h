@@ -195,10 +195,12 @@ public:
   PetscReal pre_tol          = PETSC_DECIDE;
   // -shoot_pre_fp_tol: the contact fixed point's tolerance in the pre-periods' flow (the theta
   // integrator's own, -theta_fp_tol, if that is looser). They only have to come within -shoot_pre_tol
-  // of the cycle; Newton's flows and everything after keep -theta_fp_tol (1e-12). On the 31119-DOF
-  // pad 1e-8 took 14.6 contact iterations a step instead of 24.1, the 43 return distances the same to
-  // the 4 digits printed (docs/records.md "Pre-periods at a looser contact tolerance").
-  PetscReal pre_fp_tol       = 1e-8;
+  // of the cycle; Newton's flows and everything after keep -theta_fp_tol (1e-12). 1e-6 is 300 times
+  // below the coarse pre-periods' own period error (3.3e-4 at 100 steps). On the 31119-DOF pad it
+  // takes 9.8 contact iterations a step (1e-8: 14.5, 1e-12: 24.1), the 43 return distances, the
+  // Newton iterates and the cycle as at 1e-8; the half brake's 58 pre-periods and 10 Newton
+  // iterations are unchanged too (docs/records.md "Pre-periods' contact tolerance 1e-6").
+  PetscReal pre_fp_tol       = 1e-6;
   // -shoot_pre_retries: when Newton fails from pre-periods that returned within their tolerance,
   // the flow goes on from where they stopped to a 10 times smaller return distance and Newton starts
   // again from there, up to this many times.
