@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <functional>
 #include <cstdio>
 
 #include <gtest/gtest.h>
@@ -29,6 +30,29 @@ struct Estimated {
     PetscCallAbort(PETSC_COMM_WORLD, eqs.Solve(model, eq));
     PetscCallAbort(PETSC_COMM_WORLD, ss.Solve(model, eq, stab));
     PetscCallAbort(PETSC_COMM_WORLD, ea.SetFromOptions());
+    PetscCallAbort(PETSC_COMM_WORLD, ea.Estimate(model, eq, stab, est));
+  }
+};
+
+// The 4-cell chain (several points in their own frames, W_nn coupled), estimated after `set` has
+// adjusted the analysis.
+struct ChainEstimated {
+  ChainParams        p;
+  Model              model;
+  SlidingEquilibrium eq;
+  StabilityResult    stab;
+  EnergyAnalysis     ea{PETSC_COMM_WORLD};
+  EnergyEstimate     est;
+  explicit ChainEstimated(const std::function<void(EnergyAnalysis &)> &set = nullptr)
+  {
+    EquilibriumSolver eqs(PETSC_COMM_WORLD);
+    StabilitySolver   ss(PETSC_COMM_WORLD);
+    p.cells = 4;
+    PetscCallAbort(PETSC_COMM_WORLD, BuildChain(PETSC_COMM_WORLD, p, model));
+    PetscCallAbort(PETSC_COMM_WORLD, eqs.Solve(model, eq));
+    PetscCallAbort(PETSC_COMM_WORLD, ss.Solve(model, eq, stab));
+    PetscCallAbort(PETSC_COMM_WORLD, ea.SetFromOptions());
+    if (set) set(ea);
     PetscCallAbort(PETSC_COMM_WORLD, ea.Estimate(model, eq, stab, est));
   }
 };
@@ -121,23 +145,18 @@ double TensileImpulse(double N, double a, double omega)
 // and W_nn = H_n^T (M + h theta C + h^2 theta^2 K)^-1 H_n by Eigen's LU (not the integrator's KSP).
 TEST(Energy, ImpactLossesMatchClosedFormImpulsesAndDenseDelassus)
 {
-  ChainParams p;
-  p.cells = 4;
-  Model              model;
-  SlidingEquilibrium eq;
-  StabilityResult    stab;
-  EnergyAnalysis     ea(PETSC_COMM_WORLD);
-  EnergyEstimate     est;
-  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
-  StabilitySolver    ss(PETSC_COMM_WORLD);
-  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, p, model), 0);
-  ASSERT_EQ(eqs.Solve(model, eq), 0);
-  ASSERT_EQ(ss.Solve(model, eq, stab), 0);
-  ASSERT_EQ(ea.SetFromOptions(), 0);
-  ASSERT_TRUE(ea.impacts); // the default
-  ea.impacts      = PETSC_TRUE;
-  ea.impact_steps = 8;     // a long step: h^2 K couples the points in W_nn
-  ASSERT_EQ(ea.Estimate(model, eq, stab, est), 0);
+  bool           impacts_default = false;
+  ChainEstimated s([&](EnergyAnalysis &a) {
+    impacts_default = a.impacts;
+    a.impact_steps  = 8; // a long step: h^2 K couples the points in W_nn
+  });
+  ASSERT_TRUE(impacts_default);
+  const ChainParams        &p     = s.p;
+  const Model              &model = s.model;
+  const SlidingEquilibrium &eq    = s.eq;
+  const StabilityResult    &stab  = s.stab;
+  EnergyAnalysis           &ea    = s.ea;
+  const EnergyEstimate     &est   = s.est;
   ASSERT_GE(est.mode, 0);
   ASSERT_EQ((PetscInt)eq.active.size(), p.cells);
   ASSERT_TRUE(est.impacts);
@@ -223,20 +242,12 @@ TEST(Energy, ImpactLossesLowerTheBalanceAndCanBeSwitchedOff)
 // round the period's start, must give the full sum; both friction laws.
 TEST(Energy, ReactionPowerSumsEverySampleOfTheImposedMotion)
 {
-  ChainParams p;
-  p.cells = 4;
-  Model              model;
-  SlidingEquilibrium eq;
-  StabilityResult    stab;
-  EnergyAnalysis     ea(PETSC_COMM_WORLD);
-  EnergyEstimate     est;
-  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
-  StabilitySolver    ss(PETSC_COMM_WORLD);
-  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, p, model), 0);
-  ASSERT_EQ(eqs.Solve(model, eq), 0);
-  ASSERT_EQ(ss.Solve(model, eq, stab), 0);
-  ASSERT_EQ(ea.SetFromOptions(), 0);
-  ASSERT_EQ(ea.Estimate(model, eq, stab, est), 0);
+  ChainEstimated            s;
+  Model                    &model = s.model;
+  const SlidingEquilibrium &eq    = s.eq;
+  const StabilityResult    &stab  = s.stab;
+  EnergyAnalysis           &ea    = s.ea;
+  const EnergyEstimate     &est   = s.est;
   ASSERT_GE(est.mode, 0);
 
   using cd                        = std::complex<double>;
