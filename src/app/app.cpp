@@ -453,7 +453,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   char           output[PETSC_MAX_PATH_LEN] = "";
   char          *names[16];
   PetscInt       nnames = 16;
-  PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE, gather = PETSC_TRUE;
+  PetscBool      set, help = PETSC_FALSE, traceback = PETSC_FALSE, gather = PETSC_TRUE, gather_set = PETSC_FALSE;
   Request        req;
   Stages         st;
   PetscFunctionBeginUser;
@@ -477,8 +477,9 @@ PetscErrorCode RunApp(int argc, char **argv)
                                sizeof(output), nullptr));
   PetscCall(PetscOptionsBool("-reduce_gather",
                              "On several ranks, analyse a reduced (dense) model on rank 0 alone after the reduction (except sweep and "
-                             "continuation, which spread their points over the ranks)",
-                             "RunApp", gather, &gather, nullptr));
+                             "continuation, which spread their points over the ranks). Default: on, off when shooting is the only "
+                             "time-domain analysis (its Floquet columns and preconditioner products are shared by the ranks)",
+                             "RunApp", gather, &gather, &gather_set));
   PetscCall(PetscOptionsBool("-squeal_traceback", "Full PETSc tracebacks instead of one-line error messages", "PushErrorHandler",
                              traceback, &traceback, nullptr));
   PetscOptionsEnd();
@@ -490,6 +491,11 @@ PetscErrorCode RunApp(int argc, char **argv)
   PetscErrorCode perr = Request::Parse(comm, names, nnames, req);
   for (PetscInt i = 0; i < nnames; ++i) PetscCall(PetscFree(names[i]));
   PetscCall(perr);
+  // Shooting on every rank: rank 0 integrates the forward flows and one-column tangents for all
+  // (Shooting::Flow), the blocks of tangent columns (Floquet) and the linear preconditioner's
+  // products are split. A transient (also the steady state's and the torus's) would step the whole
+  // model on every rank at once, which costs more than one rank alone: those keep the gather.
+  if (!gather_set) gather = req.shooting && !req.transient && !req.steady && !req.automatic && !req.torus ? PETSC_FALSE : PETSC_TRUE;
 
   // Read every component's options up front (cheap) so that a typo is caught before hours of work:
   // first without building anything (a CalculiX import and its reduction take minutes), then for
@@ -522,7 +528,12 @@ PetscErrorCode RunApp(int argc, char **argv)
   // whose distributed products, eigensolves and flows cost more in messages than they save (the
   // 542-DOF pad's pipeline: 72 s on one rank, 119 s on two). The reduction itself splits well, so
   // after it the model goes to rank 0 and the analyses run there; the other ranks wait. The sweep
-  // and the continuation spread their points over the ranks themselves, so they keep every rank.
+  // and the continuation spread their points over the ranks themselves, so they keep every rank;
+  // so does shooting alone (above).
+  if (size > 1 && !gather && reduced && !req.sweep && !req.continuation)
+    PetscCall(PetscPrintf(comm, "the reduced model (%" PetscInt_FMT " DOFs, dense) is analysed on all %d ranks: rank 0 integrates the flows, the ranks share "
+                                "the blocks of tangent columns (-reduce_gather 1 gathers it on rank 0)\n",
+                          model.Size(), size));
   if (size > 1 && gather && reduced && !req.sweep && !req.continuation) {
     Pipeline p0(PETSC_COMM_SELF);
     PetscCall(ModelGatherToRankZero(model, p0.model));

@@ -630,6 +630,12 @@ PetscErrorCode ThetaIntegrator::Local(Vec x, Eigen::VectorXd &out)
   PetscFunctionReturn(0);
 }
 
+void ThetaIntegrator::LocalOf(const Eigen::Ref<const Eigen::VectorXd> &x, Eigen::VectorXd &out) const
+{
+  if (ht_sparse_) out.noalias() = Hts_ * x;
+  else out.noalias() = Ht_ * x;
+}
+
 void ThetaIntegrator::SetUpKernel()
 {
   if (modal_step_on_) {

@@ -37,12 +37,30 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   PetscCall(VecCopy(U, U1));
   PetscCall(VecCopy(dU, dU1));
   const PetscInt nc = model_->contacts.Size();
+  // On several ranks the dense back end holds the whole model on each rank. Stepping it on every
+  // rank at once made each step slower (the 31119-DOF pad's pre-periods 48.7 -> 71.8 s on 2 ranks:
+  // the ranks' copies of the step matrices compete for the shared cache and memory), so rank 0 steps
+  // the whole state and broadcasts it after each step; the others only keep their rows (and the
+  // stored flow, which their share of a block of tangent columns reads).
+  DenseStepKernel *kernel = size_ > 1 ? ti_->ReplicatedKernel() : nullptr;
+  const PetscInt   nb     = 2 * N_ + r.size() + 2;
+  PetscMPIInt      nbm;
+  PetscCall(PetscMPIIntCast(nb, &nbm));
+  if (kernel) {
+    lead_.resize(nb);
+    PetscCall(gather_(U1, lead_.head(N_)));
+    PetscCall(gather_(dU1, lead_.segment(N_, N_)));
+  }
   if (record_) {
     trU_.resize(N_, steps + 1), trdU_.resize(N_, steps + 1), trV_.resize(3 * nc, steps + 1), trR_.resize(3 * nc, steps);
-    PetscCall(Full(U1, trU_.col(0)));
-    PetscCall(Full(dU1, trdU_.col(0)));
+    if (kernel) trU_.col(0) = lead_.head(N_), trdU_.col(0) = lead_.segment(N_, N_);
+    else {
+      PetscCall(Full(U1, trU_.col(0)));
+      PetscCall(Full(dU1, trdU_.col(0)));
+    }
     if (nc) {
-      PetscCall(ti_->Local(dU1, vloc_));
+      if (kernel) ti_->LocalOf(trdU_.col(0), vloc_);
+      else PetscCall(ti_->Local(dU1, vloc_));
       trV_.col(0) = vloc_;
     }
   }
@@ -55,17 +73,36 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   for (PetscInt i = 0; i < run; ++i) {
     // SIGINT/SIGTERM within a period (one flow: minutes at FE scale with many steps).
     if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a period integration"));
-    PetscCall(ti_->Step(U1, dU1, r, &info));
+    if (kernel) {
+      if (rank_ == 0) {
+        kernel->Step(lead_.data(), lead_.data() + N_, r, &info.contact);
+        lead_.segment(2 * N_, r.size()) = r;
+        lead_[nb - 2] = (PetscReal)info.contact.iterations, lead_[nb - 1] = info.contact.residual;
+      }
+      PetscCallMPI(MPI_Bcast(lead_.data(), nbm, MPIU_REAL, 0, comm_));
+      if (rank_ != 0) {
+        r                       = lead_.segment(2 * N_, r.size());
+        info.contact.iterations = (PetscInt)lead_[nb - 2], info.contact.residual = lead_[nb - 1];
+      }
+      if (on_step_) { // it reads U1 and dU1
+        PetscCall(SetRows(lead_.head(N_), U1));
+        PetscCall(SetRows(lead_.segment(N_, N_), dU1));
+      }
+    } else PetscCall(ti_->Step(U1, dU1, r, &info));
     flow_passes_ += info.contact.iterations;
     PetscCheck(r.size() == 0 || !std::isnan(info.contact.residual), comm_, PETSC_ERR_FP,
                "shooting: NaN in the flow at step %" PetscInt_FMT " of %" PetscInt_FMT " (T = %g s)", i + 1, steps, (double)T);
     if (on_step_) PetscCall(on_step_(i, U1, dU1, r));
     if (record_) {
-      PetscCall(Full(U1, trU_.col(i + 1)));
-      PetscCall(Full(dU1, trdU_.col(i + 1)));
+      if (kernel) trU_.col(i + 1) = lead_.head(N_), trdU_.col(i + 1) = lead_.segment(N_, N_);
+      else {
+        PetscCall(Full(U1, trU_.col(i + 1)));
+        PetscCall(Full(dU1, trdU_.col(i + 1)));
+      }
       if (nc) {
         trR_.col(i) = r;
-        PetscCall(ti_->Local(dU1, vloc_));
+        if (kernel) ti_->LocalOf(trdU_.col(i + 1), vloc_);
+        else PetscCall(ti_->Local(dU1, vloc_));
         trV_.col(i + 1) = vloc_;
       }
     }
@@ -76,9 +113,25 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
       std::swap(prev, cur);
     }
   }
+  if (kernel && !on_step_) {
+    PetscCall(SetRows(lead_.head(N_), U1));
+    PetscCall(SetRows(lead_.segment(N_, N_), dU1));
+  }
   CountSteps(run);
   if (r_end) *r_end = r;
   PetscCall(PetscLogEventEnd(shoot_ev::flow, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetRows(const Eigen::Ref<const Eigen::VectorXd> &full, Vec v) const
+{
+  PetscInt     lo, hi;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(v, &lo, &hi));
+  PetscCall(VecGetArray(v, &a));
+  for (PetscInt i = lo; i < hi; ++i) a[i - lo] = full[i];
+  PetscCall(VecRestoreArray(v, &a));
   PetscFunctionReturn(0);
 }
 
@@ -195,11 +248,37 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   }
   // On several ranks every rank holds the whole flow (the dense back end runs replicated) and the
   // columns are independent: each rank integrates its share and the shares are exchanged. Fewer
-  // columns than ranks stay whole (the GMRES products): no rank idles in a collective mid-flow.
+  // columns than ranks (the GMRES products) are integrated by rank 0 alone and broadcast, as the
+  // forward flow is (Flow): the same work on every rank would only compete for memory.
   const Eigen::Index k     = dZ0.cols();
   const bool         split = size_ > 1 && k >= size_;
-  const Eigen::Index c0 = split ? k * rank_ / size_ : 0, kc = split ? k * (rank_ + 1) / size_ - c0 : k;
-  Eigen::MatrixXd    dU, ddU;
+  dZ1.resize(2 * N, k);
+  if (size_ == 1 || split) {
+    const Eigen::Index c0 = split ? k * rank_ / size_ : 0, kc = split ? k * (rank_ + 1) / size_ - c0 : k;
+    PetscCall(TangentColumns(comm_, c0, kc, dZ0, dT, modal, dZ1));
+    if (split) PetscCall(ExchangeColumns(dZ1));
+  } else {
+    PetscErrorCode err = 0;
+    if (rank_ == 0) err = TangentColumns(PETSC_COMM_SELF, 0, k, dZ0, dT, modal, dZ1);
+    PetscCallMPI(MPI_Bcast(&err, 1, MPI_INT, 0, comm_));
+    if (err && rank_ == 0) PetscCall(err);
+    PetscCheck(!err, PETSC_COMM_SELF, err, "shooting: the tangent integration on rank 0 failed");
+    PetscMPIInt n;
+    PetscCall(PetscMPIIntCast(dZ1.size(), &n));
+    PetscCallMPI(MPI_Bcast(dZ1.data(), n, MPIU_REAL, 0, comm_));
+  }
+  ++evaluations_, ++tangents_;
+  tangent_columns_ += dZ0.cols();
+  PetscCall(PetscLogEventEnd(shoot_ev::tangent, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::TangentColumns(MPI_Comm poll, Eigen::Index c0, Eigen::Index kc, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT,
+                                        bool modal, Eigen::MatrixXd &dZ1)
+{
+  const PetscInt N = N_, nc = model_->contacts.Size();
+  PetscFunctionBeginUser;
+  Eigen::MatrixXd dU, ddU;
   if (modal) {
     dU.resize(N, kc), ddU.resize(N, kc);
     Gemm(ti_->ModalInverse(), false, dZ0.middleCols(c0, kc).topRows(N), dU);
@@ -215,14 +294,13 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   const bool cache = nc > 0 && trF_mb_ <= tangent_cache_mb;
   if (cache && (PetscInt)trF_.size() != steps) trF_.assign(steps, {});
   for (PetscInt i = 0; i < steps; ++i) {
-    if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a tangent integration"));
+    if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(poll, "a tangent integration"));
     sd.factor = cache ? &trF_[i] : nullptr;
     sdUi_ = dUs.col(i), sdUn_ = dUs.col(i + 1), sc_ = Cs.col(i);
     if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
     else sr_.resize(0), svs_.resize(0), sve_.resize(0);
     PetscCall(ti_->StepTangent(sr_, sve_, sd, dh, dU, ddU));
   }
-  dZ1.resize(2 * N, k);
   if (modal) {
     Gemm(ti_->ModalBasis(), false, dU, dZ1.middleCols(c0, kc).topRows(N));
     Gemm(ti_->ModalBasis(), false, ddU, dZ1.middleCols(c0, kc).bottomRows(N));
@@ -230,10 +308,6 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
     dZ1.middleCols(c0, kc).topRows(N)    = dU;
     dZ1.middleCols(c0, kc).bottomRows(N) = ddU;
   }
-  if (split) PetscCall(ExchangeColumns(dZ1));
-  ++evaluations_, ++tangents_;
-  tangent_columns_ += dZ0.cols();
-  PetscCall(PetscLogEventEnd(shoot_ev::tangent, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
@@ -286,7 +360,7 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
     // The steady-sliding linearisation's monodromy (integration/monodromy.h), at the equilibrium
     // reactions: every point closed and sliding, slip direction against V_c.
     PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
-    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_));
+    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_, size_ > 1 ? comm_ : PETSC_COMM_SELF));
     jpc_.Reset();
     PetscCall(PetscLogEventEnd(shoot_ev::linear_pc, 0, 0, 0, 0));
   }

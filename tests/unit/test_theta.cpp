@@ -696,5 +696,10 @@ TEST(Theta, LinearMonodromyIsTheStepTangentToTheStepsPower)
     ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, P), 0);
     ASSERT_EQ(P.rows(), n2);
     EXPECT_LT((P - ref).norm(), 1e-12 * ref.norm()) << steps << " steps";
+    // The products shared by the ranks of the model's communicator (each forms a block of columns;
+    // the dense back end holds the whole model on every rank): the same power on every rank.
+    Eigen::MatrixXd Ps;
+    ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, Ps, model.comm()), 0);
+    EXPECT_LT((Ps - ref).norm(), 1e-12 * ref.norm()) << steps << " steps, split";
   }
 }

@@ -12,6 +12,8 @@ namespace squeal {
 // Weakly damped structural modes put many multipliers near the unit circle, spread round it, where
 // unpreconditioned GMRES needs about one iteration each; these are nearly the multipliers of P.
 // Dense back end only.
-PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P);
+// comm: ranks that each hold the whole model (the dense back end) and share the products of the
+// powering, each forming a block of columns (compute-bound, so two ranks halve it); by default one.
+PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P, MPI_Comm comm = PETSC_COMM_SELF);
 
 } // namespace squeal

@@ -144,6 +144,11 @@ public:
   // The dense step kernel on one rank (else null), for callers that hold the state in arrays of their
   // own and step them without a Vec (the transient's loop): Step on Vecs over those arrays does the same.
   DenseStepKernel          *OneRankKernel() const { return dense_ && size_ == 1 ? kernel_.get() : nullptr; }
+  // The same kernel on any number of ranks (the dense back end holds the whole model on each), for a
+  // caller that steps the whole state on one rank for all (shooting's flows on several ranks); null
+  // for the sparse back end. LocalOf: H^T x of such a whole state, on this rank alone.
+  DenseStepKernel          *ReplicatedKernel() const { return dense_ ? kernel_.get() : nullptr; }
+  void                      LocalOf(const Eigen::Ref<const Eigen::VectorXd> &x, Eigen::VectorXd &out) const;
   const Eigen::MatrixXd    &Delassus() const { return W_; } // empty when SparseDelassus()
   bool                      SparseDelassus() const { return sparse_w_; }
   const Eigen::SparseMatrix<PetscReal> &DelassusSparse() const { return Ws_; }

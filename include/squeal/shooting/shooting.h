@@ -131,6 +131,10 @@ public:
   // Vectors in the natural order (U, dU) of the whole model, on every rank. Dense back end.
   PetscErrorCode TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT, Eigen::MatrixXd &dZ1);
   PetscErrorCode ExchangeColumns(Eigen::MatrixXd &Z) const; // TangentFlow's column shares, to every rank
+  // TangentFlow's integration of columns [c0, c0 + kc) along the stored flow into dZ1 (sized),
+  // polling for interrupts on `poll`.
+  PetscErrorCode TangentColumns(MPI_Comm poll, Eigen::Index c0, Eigen::Index kc, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT,
+                                bool modal, Eigen::MatrixXd &dZ1);
   bool           ExactJacobian() const { return exact_jacobian && ti_ && ti_->Dense(); }
   PetscErrorCode CreateState(Vec *x) const;
   PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
@@ -256,6 +260,10 @@ private:
   std::vector<ThetaIntegrator::StepData::Factor> trF_; // per step of the stored flow
   double trF_mb_ = 0;                                   // their memory when all are kept (MB)
   Eigen::VectorXd sdUi_, sdUn_, sc_, svs_, sve_, sr_, vloc_;
+  // A flow on several ranks: the whole state (U, dU), the reactions and the step's contact
+  // iterations and residual, stepped by rank 0 and broadcast to the others after each step.
+  Eigen::VectorXd lead_;
+  PetscErrorCode  SetRows(const Eigen::Ref<const Eigen::VectorXd> &full, Vec v) const; // v's rows of a whole vector
   PetscErrorCode  EnsureTrajectory(Vec x);
   PetscErrorCode  Full(Vec v, Eigen::Ref<Eigen::VectorXd> out);
   PetscErrorCode  ToNatural(Vec x, Eigen::VectorXd &z);       // packed (Z, T) -> (U, dU, T), every rank
