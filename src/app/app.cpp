@@ -531,8 +531,7 @@ PetscErrorCode RunApp(int argc, char **argv)
   // and the continuation spread their points over the ranks themselves, so they keep every rank;
   // so does shooting alone (above).
   if (size > 1 && !gather && reduced && !req.sweep && !req.continuation)
-    PetscCall(PetscPrintf(comm, "the reduced model (%" PetscInt_FMT " DOFs, dense) is analysed on all %d ranks: rank 0 integrates the flows, the ranks share "
-                                "the blocks of tangent columns (-reduce_gather 1 gathers it on rank 0)\n",
+    PetscCall(PetscPrintf(comm, "the reduced model (%" PetscInt_FMT " DOFs, dense) is analysed on all %d ranks (-reduce_gather 1 gathers it on rank 0)\n",
                           model.Size(), size));
   if (size > 1 && gather && reduced && !req.sweep && !req.continuation) {
     Pipeline p0(PETSC_COMM_SELF);

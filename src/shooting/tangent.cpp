@@ -117,6 +117,11 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
     PetscCall(SetRows(lead_.head(N_), U1));
     PetscCall(SetRows(lead_.segment(N_, N_), dU1));
   }
+  // Rank 0's contact solver carried its predictor (and Newton's factor) through the flow, the others
+  // none: the steps that every rank takes next (the dense monodromy, the phase bisection of the
+  // Floquet multipliers) must start alike on every rank, or their reactions, statuses and collective
+  // calls could part.
+  if (kernel) ti_->ForgetContactHistory();
   CountSteps(run);
   if (r_end) *r_end = r;
   PetscCall(PetscLogEventEnd(shoot_ev::flow, 0, 0, 0, 0));
@@ -219,6 +224,9 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   const PetscInt nc = model_->contacts.Size();
   bool           modal;
   PetscCall(ti_->ModalTangent(&modal));
+  // Nodal tangents form their matrices at the first StepTangent, which on several ranks may run on
+  // rank 0 alone (below): form them on every rank first, for StepTangentSource to agree.
+  if (size_ > 1 && !modal) PetscCall(ti_->EnsureNodalTangent());
   if (!trC_ready_) {
     // The h-sources depend on the base flow only: once per stored trajectory.
     trC_.resize(N, steps);

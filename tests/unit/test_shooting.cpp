@@ -606,6 +606,51 @@ TEST(Shooting, BlockTangentFlowEqualsItsColumnsOneByOne)
   VecDestroy(&x);
 }
 
+// On several ranks rank 0 steps the flows for all (Shooting::Flow) and broadcasts them; the other
+// ranks' contact solvers take no step meanwhile, so Flow ends by forgetting every rank's carried
+// solver state (the predictor's history). The steps every rank takes next (the dense monodromy, the
+// phase bisection of the Floquet multipliers) must then agree: after two flows and 40 more steps on
+// every rank, the same contact passes and the same reactions on every rank, bit for bit. A guard:
+// on this chain it also held without the reset, the fixed point reaching the same bits from
+// either starting guess.
+TEST(Shooting, StepsAfterAFlowAgreeOnEveryRank)
+{
+  Problem        chain([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
+  ShootingResult sr;
+  chain.sh.Floquet().compute = PETSC_FALSE;
+  ASSERT_EQ(chain.sh.Solve(chain.model, chain.eq, chain.ti, chain.est.U0, chain.est.dU0, chain.est.T0, sr), 0);
+  PetscInt N, lo, hi;
+  VecGetSize(chain.eq.U, &N);
+  std::vector<double> z(2 * N, 0.0);
+  if (Rank0()) z = sr.Z0;
+  MPI_Bcast(z.data(), (int)(2 * N), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+  Vec U0, dU0, U1, dU1;
+  for (Vec *w : {&U0, &dU0, &U1, &dU1}) ASSERT_EQ(VecDuplicate(chain.eq.U, w), 0);
+  ASSERT_EQ(VecGetOwnershipRange(U0, &lo, &hi), 0);
+  for (PetscInt i = lo; i < hi; ++i) VecSetValue(U0, i, z[i], INSERT_VALUES), VecSetValue(dU0, i, z[N + i], INSERT_VALUES);
+  VecAssemblyBegin(U0), VecAssemblyEnd(U0), VecAssemblyBegin(dU0), VecAssemblyEnd(dU0);
+  // Two periods (Solve's last orbit, stepped on every rank, ended where the first one ends).
+  Eigen::VectorXd r;
+  ASSERT_EQ(chain.sh.Flow(U0, dU0, sr.period, U1, dU1, &r), 0);
+  ASSERT_EQ(chain.sh.Flow(U1, dU1, sr.period, U0, dU0, &r), 0);
+  VecCopy(U0, U1), VecCopy(dU0, dU1);
+  StepInfo info;
+  PetscInt passes[2] = {0, 0}; // the contact solver's passes in all, on this rank (and its negative)
+  for (int i = 0; i < 40; ++i) {
+    ASSERT_EQ(chain.ti.Step(U1, dU1, r, &info), 0);
+    passes[0] += info.contact.iterations;
+  }
+  passes[1] = -passes[0];
+  MPI_Allreduce(MPI_IN_PLACE, passes, 2, MPIU_INT, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_EQ(passes[0], -passes[1]); // the same starting guesses on every rank
+  ASSERT_GT(r.size(), 0);
+  Eigen::VectorXd least = r, most = r;
+  MPI_Allreduce(MPI_IN_PLACE, least.data(), (int)r.size(), MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
+  MPI_Allreduce(MPI_IN_PLACE, most.data(), (int)r.size(), MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_EQ((most - least).cwiseAbs().maxCoeff(), 0.0);
+  for (Vec *w : {&U0, &dU0, &U1, &dU1}) VecDestroy(w);
+}
+
 // Above -shoot_jacobian_dense_max, GMRES runs on exact tangent products preconditioned by the LU of
 // the sliding linearisation's bordered Jacobian (-shoot_linear_pc), with each step's contact factor
 // kept along the flow (-shoot_tangent_cache_mb). Newton must take the same iterates as with the

@@ -189,6 +189,10 @@ public:
   // events, so the extrapolation starts O(h) closer: measured 21 % fewer fixed-point passes on a
   // 175-point pad, 24 % on a 451-point one (docs/records.md). History sized in Setup.
   void     SetPredictor(PetscInt order) { predict_ = std::max<PetscInt>(0, std::min<PetscInt>(order, 2)), n_hist_ = 0; }
+  // Drop what one solve hands the next (the predictor's solutions, Newton's kept factor, the mixing
+  // history): the next solve starts as the first would. For replicas of this solver on several ranks
+  // of which one alone has solved since (shooting's flows on several ranks), so that all start alike.
+  void     ForgetHistory() { n_hist_ = 0, factor_valid_ = false, a_n_ = 0; }
   // Anderson mixing of the fixed point's passes over the last `depth` (0: plain passes; at most 8),
   // on the run-time-sized and sparse paths (also the Newton's fallback); after Setup. A pass is
   // r -> G(r) (one Gauss-Seidel sweep); the next pass starts from the combination of the last

@@ -121,6 +121,12 @@ public:
   // is diagonal there and the products cost less than 0.6 x the nodal ones), true, false. The basis
   // is computed once per model (M, K and C unchanged), the diagonals and H^T Phi once per step size.
   PetscErrorCode ModalTangent(bool *on);
+  // The nodal tangent's matrices now (StepTangent forms them when first asked): for replicas on
+  // several ranks of which one alone would take a nodal tangent, so that StepTangentSource, which
+  // reads them if formed, gives every rank the same numbers.
+  PetscErrorCode EnsureNodalTangent() { return EnsureNodal(); }
+  // The contact solver's carried state forgotten (LocalContactSolver::ForgetHistory).
+  void           ForgetContactHistory() { local_.ForgetHistory(); }
   const Eigen::MatrixXd &ModalBasis() const { return Phi_; }      // U = Phi q
   // The forward step in the same modal coordinates (-theta_modal_step; theta_modal.cpp): taken, the
   // set-up of a step size costs O(n_c^2 N) (W from H^T Phi) instead of the O(N^3) of A^-1 B, A^-1 K
