@@ -23,6 +23,18 @@ PetscErrorCode GatherVector(Vec v, bool to_all, std::vector<PetscReal> &out)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode SetOwnedRows(const PetscReal *full, Vec v)
+{
+  PetscInt     lo, hi;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(v, &lo, &hi));
+  PetscCall(VecGetArray(v, &a));
+  for (PetscInt i = lo; i < hi; ++i) a[i - lo] = full[i];
+  PetscCall(VecRestoreArray(v, &a));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode AllGather::SetUp(Vec like)
 {
   PetscFunctionBeginUser;

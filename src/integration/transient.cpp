@@ -1,6 +1,7 @@
 #include "squeal/integration/transient.h"
 #include "transient_ledger.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 
@@ -73,18 +74,6 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
 }
 
 namespace {
-
-PetscErrorCode SetFromArray(Vec v, const std::vector<PetscReal> &a)
-{
-  PetscInt     lo, hi;
-  PetscScalar *x;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetOwnershipRange(v, &lo, &hi));
-  PetscCall(VecGetArray(v, &x));
-  for (PetscInt i = lo; i < hi; ++i) x[i - lo] = a[i];
-  PetscCall(VecRestoreArray(v, &x));
-  PetscFunctionReturn(0);
-}
 
 // A step whose contact solve hit its pass limit: counted, the first one reported.
 PetscErrorCode Capped(MPI_Comm comm, const ThetaIntegrator &ti, const StepInfo &info, PetscInt i, PetscReal h, TransientSummary &s)
@@ -383,8 +372,8 @@ PetscErrorCode TransientAnalysis::StartState(const SlidingEquilibrium &eq, const
 {
   PetscFunctionBeginUser;
   if (!u0.empty()) {
-    PetscCall(SetFromArray(U, u0));
-    if (!du0.empty()) PetscCall(SetFromArray(dU, du0));
+    PetscCall(SetOwnedRows(u0.data(), U));
+    if (!du0.empty()) PetscCall(SetOwnedRows(du0.data(), dU));
     else PetscCall(VecZeroEntries(dU));
   } else {
     PetscCall(VecWAXPY(U, amplitude, m.phi_re, eq.U));

@@ -7,6 +7,7 @@
 #include "internal.h"
 #include "squeal/integration/monodromy.h"
 #include "squeal/core/dense_blas.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/interrupt.h"
 
 #include <algorithm>
@@ -85,8 +86,8 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
         info.contact.iterations = (PetscInt)lead_[nb - 2], info.contact.residual = lead_[nb - 1];
       }
       if (on_step_) { // it reads U1 and dU1
-        PetscCall(SetRows(lead_.head(N_), U1));
-        PetscCall(SetRows(lead_.segment(N_, N_), dU1));
+        PetscCall(SetOwnedRows(lead_.data(), U1));
+        PetscCall(SetOwnedRows(lead_.data() + N_, dU1));
       }
     } else PetscCall(ti_->Step(U1, dU1, r, &info));
     flow_passes_ += info.contact.iterations;
@@ -114,8 +115,8 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
     }
   }
   if (kernel && !on_step_) {
-    PetscCall(SetRows(lead_.head(N_), U1));
-    PetscCall(SetRows(lead_.segment(N_, N_), dU1));
+    PetscCall(SetOwnedRows(lead_.data(), U1));
+    PetscCall(SetOwnedRows(lead_.data() + N_, dU1));
   }
   // Rank 0's contact solver carried its predictor (and Newton's factor) through the flow, the others
   // none: the steps that every rank takes next (the dense monodromy, the phase bisection of the
@@ -125,18 +126,6 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   CountSteps(run);
   if (r_end) *r_end = r;
   PetscCall(PetscLogEventEnd(shoot_ev::flow, 0, 0, 0, 0));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Shooting::SetRows(const Eigen::Ref<const Eigen::VectorXd> &full, Vec v) const
-{
-  PetscInt     lo, hi;
-  PetscScalar *a;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetOwnershipRange(v, &lo, &hi));
-  PetscCall(VecGetArray(v, &a));
-  for (PetscInt i = lo; i < hi; ++i) a[i - lo] = full[i];
-  PetscCall(VecRestoreArray(v, &a));
   PetscFunctionReturn(0);
 }
 

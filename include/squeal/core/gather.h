@@ -15,6 +15,9 @@ namespace squeal {
 // One-off gather of a distributed vector: in full on every rank (to_all) or on rank 0 only
 // (empty elsewhere). Collective. For repeated gathers of the same layout use AllGather.
 PetscErrorCode GatherVector(Vec v, bool to_all, std::vector<PetscReal> &out);
+// The other way: v's own rows from a whole vector that this rank holds (full[i] for each owned row
+// i). Not collective.
+PetscErrorCode SetOwnedRows(const PetscReal *full, Vec v);
 
 class AllGather {
 public:

@@ -263,7 +263,6 @@ private:
   // A flow on several ranks: the whole state (U, dU), the reactions and the step's contact
   // iterations and residual, stepped by rank 0 and broadcast to the others after each step.
   Eigen::VectorXd lead_;
-  PetscErrorCode  SetRows(const Eigen::Ref<const Eigen::VectorXd> &full, Vec v) const; // v's rows of a whole vector
   PetscErrorCode  EnsureTrajectory(Vec x);
   PetscErrorCode  Full(Vec v, Eigen::Ref<Eigen::VectorXd> out);
   PetscErrorCode  ToNatural(Vec x, Eigen::VectorXd &z);       // packed (Z, T) -> (U, dU, T), every rank
