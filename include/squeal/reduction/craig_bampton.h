@@ -53,6 +53,7 @@
 #include "squeal/model/model.h"
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace squeal {
@@ -75,6 +76,7 @@ struct ReductionInfo {
   PetscInt               n_normal = 0, n_inplane_modes = 0; // n_inplane_modes: every column of the interface basis
   PetscInt               n_interface_statics = 0;           // of them, added for the contact normals' statics
   PetscInt               slice_parts = 0;                   // the fixed-interface modes by spectrum slicing in this many parts (0: one shift)
+  std::vector<PetscInt>  slice_counts;                      // the modes each part found, in ascending order of the parts
   std::vector<PetscReal> inplane_freq;
   PetscReal              time_expansion = 0; // s, building the kept expansion (0: none kept)
   size_t                 expansion_bytes = 0; // on rank 0
@@ -106,6 +108,7 @@ public:
   // The fixed-interface modes below the cut-off by spectrum slicing (1), at one shift (0), or where
   // slicing is estimated cheaper (-1, the default; -reduce_slice). The same modes either way.
   PetscErrorCode SetSlice(PetscInt slice) { slice_ = slice; return 0; }
+  PetscErrorCode SetSliceBalance(bool on) { slice_balance_ = on ? PETSC_TRUE : PETSC_FALSE; return 0; } // the parts at equal mode counts
   // Interface reduction: keep the k lowest characteristic constraint modes of the interface (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
   // limit; -reduce_interface_fmax). Both unset (the default): no interface reduction.
@@ -133,7 +136,8 @@ private:
   PetscErrorCode FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in);
   PetscErrorCode FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in, std::vector<PetscReal> &lam,
                                      std::vector<PetscInt> &keep);
-  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, std::vector<PetscReal> &lam);
+  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, const std::vector<std::pair<PetscReal, PetscInt>> &counts,
+                            std::vector<PetscReal> &lam);
 
   MPI_Comm      comm_;
   std::string   prefix_ = "reduce_";
@@ -147,6 +151,7 @@ private:
   PetscBool     rayleigh_  = PETSC_TRUE;
   PetscBool     sparse_rhs_ = PETSC_TRUE;
   PetscBool     count_modes_ = PETSC_TRUE;
+  PetscBool     slice_balance_ = PETSC_TRUE; // -reduce_slice_balance: the parts' boundaries at equal mode counts
   PetscBool     redundant_   = PETSC_TRUE;
   PetscInt      rhs_block_   = 32;
   PetscInt      iface_modes_ = -1;
