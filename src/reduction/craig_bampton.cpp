@@ -780,10 +780,10 @@ static PetscInt SliceParts(MPI_Comm comm)
 // single shift with hundreds of modes spends its time orthogonalising against them (802 modes of the
 // size-1 brake: 31 of 47 s); slicing moves the shift along the interval (a factorisation each) and
 // splits the interval over the ranks, each part on one rank with its own whole copy of the matrices.
-// counts: the modes below some lambdas (sorted, the last w2max's); with more than one, the parts'
-// boundaries are put where each part holds as many (else SLEPc's equal widths).
-PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max,
-                                        const std::vector<std::pair<PetscReal, PetscInt>> &counts, std::vector<PetscReal> &lam)
+// On several parts (-reduce_slice_balance) the parts' boundaries are put where each holds as many of
+// the nev modes, found by inertia counts (else SLEPc's equal widths).
+PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, PetscInt nev, const ModeCount &count,
+                                        std::vector<PetscReal> &lam)
 {
   ST          st;
   KSP         ksp;
@@ -803,8 +803,11 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
   // 60 modes a shift, not SLEPc's 40: fewer shifts, so fewer factorisations, for a little more
   // orthogonalisation. Size-1 brake (802 modes, 1 rank): 21.7 s against 24.0-25.2 s (80: 22.3 s);
   // size-2 brake (933 modes, 2 ranks): 239.5 against 256.1 s, 12 factorisations on the busier rank
-  // against 16 (2.7 s each).
-  PetscCall(EPSKrylovSchurSetDimensions(in.slice, 60, PETSC_DEFAULT, PETSC_DEFAULT));
+  // against 16 (2.7 s each). (SLEPc 3.18 goes back to its 40 when only -reduce_slice_eps_krylovschur_ncv
+  // or _mpd is given: give _nev with them.)
+  PetscInt nI;
+  PetscCall(MatGetSize(in.Kii, &nI, nullptr));
+  if (nI >= 240) PetscCall(EPSKrylovSchurSetDimensions(in.slice, 60, PETSC_DEFAULT, PETSC_DEFAULT));
   // One rank per part: each part's factorisations are sequential MUMPS ones, whose inertia is exact.
   PetscCall(EPSKrylovSchurSetPartitions(in.slice, SliceParts(comm)));
   PetscCall(EPSGetST(in.slice, &st));
@@ -829,13 +832,32 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
     if (!has) PetscCall(PetscOptionsSetValue(nullptr, name.c_str(), d.second));
   }
   PetscCall(EPSSetFromOptions(in.slice));
-  PetscInt npart = 1;
+  PetscInt  npart = 1;
+  PetscReal inta, intb;
   PetscCall(EPSKrylovSchurGetPartitions(in.slice, &npart));
-  if (counts.size() > 1 && npart > 1) {
-    const PetscReal        nev = (PetscReal)counts.back().second;
+  PetscCall(EPSGetInterval(in.slice, &inta, &intb));
+  std::vector<std::pair<PetscReal, PetscInt>> counts{{w2max, nev}}; // (lambda, modes below it), sorted
+  if (npart > 1 && slice_balance_ && inta == 0.0 && intb == w2max) {
+    // Equal widths of [0, w2max] hold unequal counts (the size-2 brake's two parts 764 and 1146
+    // solves; the unit tests' small pad at 150 kHz 164 and 77 modes): the median is sought by counts
+    // (a factorisation each, at most 3, within 5 % of it), the other boundaries interpolated
+    // between them. Every rank takes the same steps: the counts are the same on all.
+    const PetscReal half = 0.5 * (PetscReal)nev;
+    for (int tries = 0; tries < 3; ++tries) {
+      const PetscReal w2c = LambdaAtCount(counts, half);
+      PetscInt        nc  = 0;
+      bool            okc = false;
+      PetscCall(count(w2c, &nc, &okc));
+      if (!okc || nc <= 0 || nc >= nev) break;
+      counts.insert(std::upper_bound(counts.begin(), counts.end(), std::make_pair(w2c, nc)), std::make_pair(w2c, nc));
+      if (std::abs((PetscReal)nc - half) <= 0.05 * (PetscReal)nev) break;
+    }
+  }
+  if (counts.size() > 1) {
     std::vector<PetscReal> sub(npart + 1);
     sub[0] = 0.0, sub[npart] = w2max;
-    for (PetscInt k = 1; k < npart; ++k) sub[k] = PetscMin(w2max, PetscMax(sub[k - 1], LambdaAtCount(counts, nev * k / npart)));
+    for (PetscInt k = 1; k < npart; ++k)
+      sub[k] = PetscMin(w2max, PetscMax(sub[k - 1], LambdaAtCount(counts, (PetscReal)nev * k / npart)));
     PetscCall(EPSKrylovSchurSetSubintervals(in.slice, sub.data()));
   }
   PetscCall(PollInterrupt(in.slice));
@@ -968,25 +990,12 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                           nneg, (double)fmax_, prefix_.c_str(), max_modes_, nev, f, prefix_.c_str(), prefix_.c_str()));
   }
   if (counted && nev > 0 && !slice) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
-  std::vector<std::pair<PetscReal, PetscInt>> counts{{w2slice, nev}}; // (lambda, modes below it), sorted
-  if (slice && SliceParts(comm) > 1 && slice_balance_) {
-    // Equal widths of [0, w2slice] hold unequal counts (the size-2 brake's two parts 764 and 1146
-    // solves; the unit tests' small pad at 150 kHz 164 and 77 modes): the median is sought by counts (a factorisation
-    // each, at most 3, within 5 % of it), the other boundaries interpolated between them.
-    const PetscReal half = 0.5 * (PetscReal)nev;
-    for (int tries = 0; tries < 3; ++tries) {
-      const PetscReal w2c = LambdaAtCount(counts, half);
-      PetscInt        nc  = 0;
-      bool            okc = false;
-      PetscLogDouble  tc  = 0;
-      PetscCall(count(w2c, &nc, &okc, &tc));
-      if (!okc || nc <= 0 || nc >= nev) break;
-      counts.insert(std::upper_bound(counts.begin(), counts.end(), std::make_pair(w2c, nc)), std::make_pair(w2c, nc));
-      if (std::abs((PetscReal)nc - half) <= 0.05 * (PetscReal)nev) break;
-    }
-  }
   if (slice) {
-    PetscCall(SliceModes(comm, in, w2slice, counts, lam));
+    auto count_only = [&](PetscReal w2, PetscInt *n, bool *ok) -> PetscErrorCode {
+      PetscLogDouble t;
+      return count(w2, n, ok, &t);
+    };
+    PetscCall(SliceModes(comm, in, w2slice, nev, count_only, lam));
     nconv = (PetscInt)lam.size();
     PetscCheck(nconv == nev || slice_ < 0, comm, PETSC_ERR_NOT_CONVERGED,
                "reduction: spectrum slicing found %" PetscInt_FMT " fixed-interface modes below %g Hz where the inertia counts %" PetscInt_FMT

@@ -53,6 +53,7 @@
 #include "squeal/model/model.h"
 
 #include <string>
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -136,8 +137,9 @@ private:
   PetscErrorCode FactorInterior(const Model &full, const cb::Partition &p, cb::Interior &in);
   PetscErrorCode FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in, std::vector<PetscReal> &lam,
                                      std::vector<PetscInt> &keep);
-  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, const std::vector<std::pair<PetscReal, PetscInt>> &counts,
-                            std::vector<PetscReal> &lam);
+  // count(w2, &n, &ok): the modes below w2 by an inertia count (collective); nev of them below w2max.
+  using ModeCount = std::function<PetscErrorCode(PetscReal, PetscInt *, bool *)>;
+  PetscErrorCode SliceModes(MPI_Comm comm, cb::Interior &in, PetscReal w2max, PetscInt nev, const ModeCount &count, std::vector<PetscReal> &lam);
 
   MPI_Comm      comm_;
   std::string   prefix_ = "reduce_";
