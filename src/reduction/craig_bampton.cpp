@@ -123,11 +123,11 @@ PetscErrorCode CreateReducedMat(MPI_Comm comm, const Dense &A, Mat *out)
 }
 
 // P = W^T A W for a symmetric A (same row layout as W) and W's first nc columns, on every rank, a
-// block of columns of W at a time: the whole A W would be a second N x n dense block (4.1 GB for the 126 861-DOF brake at
-// n = 4019), beside W at the peak of the reduction. Each rank forms its rows' share of the block
-// column's lower part (half the flops of a full product; OpenBLAS where it stands behind the
-// system BLAS, 51 against Eigen's 42 GF/s on this product's shape, else Eigen), the shares are summed, and the triangle mirrored: no N x n
-// block leaves its rank.
+// block of columns of W at a time: the whole A W would be a second N x n dense block (4.1 GB for
+// the 126 861-DOF brake at n = 4019), beside W at the peak of the reduction. Each rank forms its
+// rows' share of the block column's lower part (half the flops of a full product; through OpenBLAS
+// where it stands behind the system BLAS, 51 against Eigen's 42 GF/s on this shape, else Eigen),
+// the shares are summed, and the triangle mirrored: no N x n block leaves its rank.
 PetscErrorCode SymmetricProjection(Mat A, Mat W, PetscInt nc, Dense &P)
 {
   MPI_Comm       comm;
@@ -549,8 +549,8 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                      "than orthogonalising against every mode at one shift",
                      slice_));
   PetscCall(PetscOptionsBool("-slice_balance",
-                             "Spectrum slicing on several ranks: the parts' boundaries where each holds as many modes (one more "
-                             "inertia count fits N ~ lambda^p), not at equal widths of the interval",
+                             "Spectrum slicing on several ranks: the parts' boundaries where each holds as many modes (inertia "
+                             "counts seek the median, at most 3 factorisations), not at equal widths of the interval",
                              "CraigBampton", slice_balance_, &slice_balance_, nullptr));
   PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
@@ -800,14 +800,17 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
   PetscCall(EPSSetWhichEigenpairs(in.slice, EPS_ALL));
   PetscCall(EPSSetTolerances(in.slice, 1e-10, PETSC_DEFAULT));
   PetscCall(EPSSetPurify(in.slice, PETSC_FALSE)); // as the one shift's solve (FixedInterfaceModes)
-  // 60 modes a shift, not SLEPc's 40: fewer shifts, so fewer factorisations, for a little more
-  // orthogonalisation. Size-1 brake (802 modes, 1 rank): 21.7 s against 24.0-25.2 s (80: 22.3 s);
-  // size-2 brake (933 modes, 2 ranks): 239.5 against 256.1 s, 12 factorisations on the busier rank
-  // against 16 (2.7 s each). (SLEPc 3.18 goes back to its 40 when only -reduce_slice_eps_krylovschur_ncv
-  // or _mpd is given: give _nev with them.)
+  // Modes a shift: more shifts cost more factorisations, more modes a shift more orthogonalisation
+  // against the shift's basis, and a factorisation grows faster with n_I than a vector. SLEPc's 40
+  // is best for neither brake; 60 (n_I / 16764)^0.2, fitted to both (fixed-interface modes):
+  //   size 1 (n_I = 16 764, 802 modes, 1 rank): 20: 29.8 s, 40: 24.0-25.2, 60: 21.7, 80: 22.3, 120: 25.0;
+  //   size 2 (n_I = 122 955, 933 modes, 2 ranks): 40: 256.1 s, 60: 235.2, 90: 214.7, 130: 241.4.
+  // SLEPc 3.18 goes back to its 40 when only -reduce_slice_eps_krylovschur_ncv or _mpd is given:
+  // give _nev with them.
   PetscInt nI;
   PetscCall(MatGetSize(in.Kii, &nI, nullptr));
-  if (nI >= 240) PetscCall(EPSKrylovSchurSetDimensions(in.slice, 60, PETSC_DEFAULT, PETSC_DEFAULT));
+  info_.slice_per_shift = (PetscInt)std::lround(PetscMax(40.0, PetscMin(120.0, 60.0 * std::pow((PetscReal)nI / 16764.0, 0.2))));
+  if (nI >= 4 * info_.slice_per_shift) PetscCall(EPSKrylovSchurSetDimensions(in.slice, info_.slice_per_shift, PETSC_DEFAULT, PETSC_DEFAULT));
   // One rank per part: each part's factorisations are sequential MUMPS ones, whose inertia is exact.
   PetscCall(EPSKrylovSchurSetPartitions(in.slice, SliceParts(comm)));
   PetscCall(EPSGetST(in.slice, &st));
@@ -832,6 +835,7 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
     if (!has) PetscCall(PetscOptionsSetValue(nullptr, name.c_str(), d.second));
   }
   PetscCall(EPSSetFromOptions(in.slice));
+  PetscCall(EPSKrylovSchurGetDimensions(in.slice, &info_.slice_per_shift, nullptr, nullptr));
   PetscInt  npart = 1;
   PetscReal inta, intb;
   PetscCall(EPSKrylovSchurGetPartitions(in.slice, &npart));
@@ -953,12 +957,12 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
     // Time model, from the 17820-DOF brake (802 modes, 1 rank; K_II factor 0.2 s, a solve 7 ms):
     // at one shift ~3.5 solves per mode and ~4 n_I k^2 flops of orthogonalisation at ~1.4 GFlop/s
     // (31 of 47 s), none of it shared by the ranks (each solves the whole system); slicing ~3.2
-    // solves per mode and k/60 + 2 more factorisations, split over its parts. A solve ~0.04 of a
+    // solves per mode and k/60 + 2 more factorisations (60-90 modes a shift), split over its parts. A solve ~0.04 of a
     // factorisation, timed on the counting one. Few modes of a large model stay at one shift.
     const double parts     = (double)SliceParts(comm);
     const double t_solve   = 0.04 * t_count;
     const double one_shift = 4.0 * (double)nI * (double)nev * (double)nev / 1.4e9 + 3.5 * nev * t_solve;
-    const double slicing   = (3.2 * nev * t_solve + ((double)nev / 60.0 + 2.0) * t_count) / parts; // 60 modes a shift (SliceModes)
+    const double slicing   = (3.2 * nev * t_solve + ((double)nev / 60.0 + 2.0) * t_count) / parts;
     slice                  = one_shift > slicing && nev >= 50 * SliceParts(comm); // 50 modes a part at least
   }
   if (slice && nneg > cap) {
@@ -1199,8 +1203,9 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
   if (info_.slice_parts > 0) {
     std::string counts;
     for (size_t k = 0; k < info_.slice_counts.size(); ++k) counts += (k ? " + " : "") + std::to_string(info_.slice_counts[k]);
-    PetscCall(PetscSNPrintf(sliced, sizeof sliced, " by spectrum slicing in %" PetscInt_FMT " part(s)%s%s%s", info_.slice_parts,
-                            info_.slice_parts > 1 ? " (" : "", info_.slice_parts > 1 ? counts.c_str() : "", info_.slice_parts > 1 ? " modes)" : ""));
+    PetscCall(PetscSNPrintf(sliced, sizeof sliced, " by spectrum slicing in %" PetscInt_FMT " part(s) (%s%s%" PetscInt_FMT " a shift)",
+                            info_.slice_parts, info_.slice_parts > 1 ? counts.c_str() : "", info_.slice_parts > 1 ? " modes, " : "",
+                            info_.slice_per_shift));
   }
   if (info_.n_interface_statics > 0)
     PetscCall(PetscSNPrintf(statics, sizeof statics, " (%" PetscInt_FMT " of them the statics of the contact normals)", info_.n_interface_statics));

@@ -78,6 +78,7 @@ struct ReductionInfo {
   PetscInt               n_interface_statics = 0;           // of them, added for the contact normals' statics
   PetscInt               slice_parts = 0;                   // the fixed-interface modes by spectrum slicing in this many parts (0: one shift)
   std::vector<PetscInt>  slice_counts;                      // the modes each part found, in ascending order of the parts
+  PetscInt               slice_per_shift = 0;               // the modes a slicing shift asks for (-reduce_slice_eps_krylovschur_nev)
   std::vector<PetscReal> inplane_freq;
   PetscReal              time_expansion = 0; // s, building the kept expansion (0: none kept)
   size_t                 expansion_bytes = 0; // on rank 0
