@@ -7,6 +7,9 @@
 #include "squeal/shooting/shooting.h"
 
 #include <cmath>
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 #include <limits>
 
 namespace squeal {
@@ -43,6 +46,65 @@ PetscErrorCode EnergyAnalysis::SetFromOptions()
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// One point's motion over the period: r_n = N + pr cos - pi sin, u_t = tr sin + ti cos, u_b = br sin + bi cos.
+struct PointMotion {
+  PetscReal N, pr, pi, tr, ti, br, bi, V;
+};
+
+// Largest squared slip speed the fast kernel takes (float's range is 3.4e38).
+constexpr PetscReal kPlanarFastMax = 1e30;
+
+// sum over the samples of max(r_n, 0) (s_t u_t - u_b^2) / sqrt(s_t^2 + u_b^2), s_t = V - u_t: the
+// planar law's sliding power. A vector divide and square root cost 14 cycles for 4 samples on this
+// machine, most of the scan (docs/records.md "Energy scan"). Instead: a single-precision estimate
+// y of 1/sqrt (relative error e <= 3.7e-4) and the series of (1 - e)^-1/2 to e^4 in double, which
+// leaves 2e-18 (two Newton steps would leave 6e-14, three cost more). Where
+// s_t = u_b = 0 the numerator is 0 as well, so the squared speed is floored at 1e-30 (float's
+// normal range) instead of tested.
+PetscReal PlanarArcSum(const PetscReal *c, const PetscReal *s, Eigen::Index n, const PointMotion &m)
+{
+  Eigen::Index i   = 0;
+  PetscReal    sum = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+  const __m256d N = _mm256_set1_pd(m.N), pr = _mm256_set1_pd(m.pr), pi = _mm256_set1_pd(m.pi), tr = _mm256_set1_pd(m.tr);
+  const __m256d ti = _mm256_set1_pd(m.ti), br = _mm256_set1_pd(m.br), bi = _mm256_set1_pd(m.bi), V = _mm256_set1_pd(m.V);
+  const __m256d zero = _mm256_setzero_pd(), floor = _mm256_set1_pd(1e-30), one = _mm256_set1_pd(1.0);
+  // (1 - e)^-1/2 = 1 + e/2 + 3e^2/8 + 5e^3/16 + 35e^4/128 + ...: with |e| <= 3.7e-4 the first term left
+  // out, 63e^5/256, is 2e-18.
+  const __m256d c1 = _mm256_set1_pd(0.5), c2 = _mm256_set1_pd(0.375), c3 = _mm256_set1_pd(0.3125), c4 = _mm256_set1_pd(0.2734375);
+  __m256d acc = zero;
+  for (; i + 4 <= n; i += 4) {
+    const __m256d C  = _mm256_loadu_pd(c + i), S = _mm256_loadu_pd(s + i);
+    const __m256d rn = _mm256_fmadd_pd(pr, C, _mm256_fnmadd_pd(pi, S, N));
+    const __m256d ut = _mm256_fmadd_pd(tr, S, _mm256_mul_pd(ti, C));
+    const __m256d ub = _mm256_fmadd_pd(br, S, _mm256_mul_pd(bi, C));
+    const __m256d st = _mm256_sub_pd(V, ut), ub2 = _mm256_mul_pd(ub, ub);
+    const __m256d num = _mm256_fmsub_pd(st, ut, ub2);
+    const __m256d m2  = _mm256_max_pd(_mm256_fmadd_pd(st, st, ub2), floor);
+    const __m256d y   = _mm256_cvtps_pd(_mm_rsqrt_ps(_mm256_cvtpd_ps(m2)));
+    const __m256d e   = _mm256_fnmadd_pd(_mm256_mul_pd(m2, y), y, one); // 1/sqrt(m2) = y (1 - e)^-1/2
+    __m256d       t   = _mm256_fmadd_pd(c4, e, c3);
+    t                 = _mm256_fmadd_pd(t, e, c2);
+    t                 = _mm256_fmadd_pd(t, e, c1);
+    t                 = _mm256_fmadd_pd(t, e, one);
+    acc               = _mm256_fmadd_pd(_mm256_mul_pd(_mm256_mul_pd(_mm256_max_pd(rn, zero), num), y), t, acc);
+  }
+  alignas(32) PetscReal lanes[4];
+  _mm256_store_pd(lanes, acc);
+  sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+#endif
+  for (; i < n; ++i) {
+    const PetscReal rn = m.N + m.pr * c[i] - m.pi * s[i], ut = m.tr * s[i] + m.ti * c[i], ub = m.br * s[i] + m.bi * c[i];
+    const PetscReal st = m.V - ut, m2 = st * st + ub * ub;
+    if (rn > 0 && m2 > 0) sum += rn * (st * ut - ub * ub) / std::sqrt(m2);
+  }
+  return sum;
+}
+
+} // namespace
+
 void EnergyAnalysis::Powers(PetscReal q, PetscReal *P_R, PetscReal *P_I, std::vector<PetscReal> *J) const
 {
   using Arr                     = Eigen::Array<PetscReal, Eigen::Dynamic, 1>;
@@ -63,8 +125,14 @@ void EnergyAnalysis::Powers(PetscReal q, PetscReal *P_R, PetscReal *P_I, std::ve
     const PetscReal pr = q * psi_[p].real(), pi = q * psi_[p].imag(), Np = N_[p], V = speed_[p];
     const PetscReal tr = -q * omega_ * phit_[p].real(), ti = -q * omega_ * phit_[p].imag();
     const PetscReal br = -q * omega_ * phib_[p].real(), bi = -q * omega_ * phib_[p].imag();
+    // The fast kernel's first guess of 1/sqrt is in single precision: only while the squared slip
+    // speed, at most (|V| + |u_t|)^2 + |u_b|^2, stays well inside float's range.
+    const PetscReal m2_max      = std::pow(std::abs(V) + std::hypot(tr, ti), 2) + std::pow(std::hypot(br, bi), 2);
+    const bool      fast_planar = m2_max < kPlanarFastMax;
     // Re(z e^{i w t}) = Re z cos - Im z sin; velocity Re(i w z e^{i w t}) = -w (Re z sin + Im z cos).
     const auto sliding = [&](Eigen::Index a, Eigen::Index len) {
+      if (!rectilinear && fast_planar)
+        return PlanarArcSum(cos_.data() + a, sin_.data() + a, len, {Np, pr, pi, tr, ti, br, bi, V});
       const auto Cs = C.segment(a, len), Ss = S.segment(a, len);
       const auto rn = Np + pr * Cs - pi * Ss;
       const auto ut = tr * Ss + ti * Cs;
@@ -77,25 +145,28 @@ void EnergyAnalysis::Powers(PetscReal q, PetscReal *P_R, PetscReal *P_I, std::ve
     // off it: sum over that arc, widened by 2 samples each side, where max(rn, 0) decides as it
     // would over the whole period. The same sum without the separated samples' zeros: the scan to
     // 50 q_sep finds the first points to lift off separated for up to half the period
-    // (docs/records.md "Energy scan": 3.3 -> 2.3 s on the 562-DOF pad).
+    // (docs/records.md "Energy scan": 3.3 -> 2.3 s on the 562-DOF pad). Likewise the tension
+    // max(-rn, 0) of the impact losses, over the other arc. over_arc takes the samples of the angles
+    // [lo, hi] widened by 2 each side: one segment, or two round theta = 0.
+    const auto over_arc = [&](PetscReal lo, PetscReal hi, const auto &f) {
+      const auto i0 = (Eigen::Index)std::floor(lo / dtheta) - 2, i1 = (Eigen::Index)std::ceil(hi / dtheta) + 2;
+      if (i1 - i0 + 1 >= ns) return f(0, ns);
+      const Eigen::Index a = ((i0 % ns) + ns) % ns, len = i1 - i0 + 1, first = std::min(len, ns - a);
+      return first < len ? f(a, first) + f(0, len - first) : f(a, first);
+    };
+    const auto tension = [&](Eigen::Index a, Eigen::Index len) {
+      return (-(Np + pr * C.segment(a, len) - pi * S.segment(a, len))).max(0).sum();
+    };
     const PetscReal rho = std::hypot(pr, pi);
-    Eigen::Index    a = 0, len = ns;
-    if (rho > 0 && Np < rho) {
-      if (Np <= -rho) len = 0;
-      else {
-        const PetscReal alpha = std::atan2(pi, pr), beta = std::acos(-Np / rho);
-        const auto      lo = (Eigen::Index)std::floor((-alpha - beta) / dtheta) - 2, hi = (Eigen::Index)std::ceil((-alpha + beta) / dtheta) + 2;
-        if (hi - lo + 1 < ns) a = ((lo % ns) + ns) % ns, len = hi - lo + 1;
-      }
-    }
-    PetscReal acc = 0;
-    if (len > 0) {
-      const Eigen::Index first = std::min(len, ns - a);
-      acc                      = sliding(a, first);
-      if (first < len) acc += sliding(0, len - first);
-    }
-    sum += acc;
-    if (impacts) J_[p] = (-(Np + pr * C - pi * S)).max(0).sum() * period_ / ns;
+    PetscReal       jp  = 0; // the sum of the tension samples max(-r_n, 0)
+    if (rho > 0 && Np < rho && Np > -rho) {
+      // Closed on theta + alpha in (-beta, beta), open on (beta, 2 pi - beta).
+      const PetscReal alpha = std::atan2(pi, pr), beta = std::acos(-Np / rho);
+      sum += over_arc(-alpha - beta, -alpha + beta, sliding);
+      if (impacts) jp = over_arc(beta - alpha, 2 * PETSC_PI - alpha - beta, tension);
+    } else if (Np >= rho) sum += sliding(0, ns); // closed all the period (rho = 0 included): no tension
+    else if (impacts) jp = tension(0, ns);     // open all the period: no friction
+    if (impacts) J_[p] = jp * period_ / ns;
   }
   *P_R = cs.Mu() * sum / ns;
   *P_I = 0;
@@ -122,14 +193,37 @@ PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool 
   std::vector<PetscReal> f(n_scan);
   PetscInt crossing = -1;
   for (PetscInt k = 0; k < n_scan; ++k) {
-    if (k % poll_every == 0) PetscCall(InterruptPoint(comm_, "the energy scan"));
-    const PetscReal q  = (k + 1) * q_max / n_scan;
-    est.q[k]           = q;
-    est.P_damping[k]   = 0.5 * q * q * omega_ * omega_ * cphi_;
-    PetscReal P_I;
-    Powers(q, &est.P_reactions[k], &P_I);
-    if (est.impacts) est.P_impacts[k] = P_I;
-    f[k] = est.P_reactions[k] - est.P_damping[k] - P_I;
+    const PetscReal q = (k + 1) * q_max / n_scan;
+    est.q[k]          = q;
+    est.P_damping[k]  = 0.5 * q * q * omega_ * omega_ * cphi_;
+  }
+  if (full_scan) {
+    // The whole curve is asked for: its amplitudes shared round the ranks (every rank holds the
+    // model's contact data), each power summed from one rank and zeros, so the same on every rank.
+    PetscMPIInt rank, size;
+    PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+    PetscCallMPI(MPI_Comm_size(comm_, &size));
+    std::fill(est.P_reactions.begin(), est.P_reactions.end(), 0.0);
+    for (PetscInt k = 0; k < n_scan; ++k) {
+      if (k % poll_every == 0) PetscCall(InterruptPoint(comm_, "the energy scan"));
+      if (k % size != rank) continue;
+      PetscReal P_I;
+      Powers(est.q[k], &est.P_reactions[k], &P_I);
+      if (est.impacts) est.P_impacts[k] = P_I;
+    }
+    if (size > 1) {
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, est.P_reactions.data(), (PetscMPIInt)n_scan, MPIU_REAL, MPI_SUM, comm_));
+      if (est.impacts) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, est.P_impacts.data(), (PetscMPIInt)n_scan, MPIU_REAL, MPI_SUM, comm_));
+    }
+  }
+  for (PetscInt k = 0; k < n_scan; ++k) {
+    if (!full_scan) {
+      if (k % poll_every == 0) PetscCall(InterruptPoint(comm_, "the energy scan"));
+      PetscReal P_I;
+      Powers(est.q[k], &est.P_reactions[k], &P_I);
+      if (est.impacts) est.P_impacts[k] = P_I;
+    }
+    f[k] = est.P_reactions[k] - est.P_damping[k] - (est.impacts ? est.P_impacts[k] : 0.0);
     if (crossing < 0 && k > 0 && f[k - 1] > 0 && f[k] <= 0) crossing = k - 1;
     if (crossing >= 0 && !full_scan) {
       est.q.resize(k + 1), est.P_damping.resize(k + 1), est.P_reactions.resize(k + 1);
