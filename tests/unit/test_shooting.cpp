@@ -1048,6 +1048,21 @@ TEST(Floquet, ArnoldiStopsAtAFractionOfTheTrivialMultipliersError)
   EXPECT_DOUBLE_EQ(FloquetArnoldiTolerance(1e-8, 1e-2, {}), 1e-8);
 }
 
+TEST(Floquet, ArnoldiChecksSoonerWhereTheResidualsDecayReachesTheTolerance)
+{
+  // The cadence alone: every block up to 8, then ceil(count / 8) blocks apart (22 -> 26, 8 -> 10).
+  EXPECT_EQ(FloquetNextCheck(3, 0, 0.0, 0.5, 1e-5), 4);
+  EXPECT_EQ(FloquetNextCheck(8, 7, 0.2, 0.1, 1e-5), 10);  // 0.1 -> 1e-5 at 0.5 a block: 14 blocks on
+  EXPECT_EQ(FloquetNextCheck(8, 0, 0.0, 0.1, 1e-5), 10);  // no check before
+  EXPECT_EQ(FloquetNextCheck(22, 0, 0.0, 7e-5, 1.5e-5), 26);
+  EXPECT_EQ(FloquetNextCheck(22, 19, 6e-5, 7e-5, 1.5e-5), 26); // not falling
+  // pad_cycle.yaml's residuals: 6.33e-4 at 19 blocks, 7.02e-5 at 22 (0.48 a block): 1.5e-5 after
+  // log(0.214) / log(0.48) = 2.1 blocks more, so 25.
+  EXPECT_EQ(FloquetNextCheck(22, 19, 6.33e-4, 7.02e-5, 1.5e-5), 25);
+  EXPECT_EQ(FloquetNextCheck(22, 19, 1e-2, 2e-5, 1.5e-5), 23); // at least one block
+  EXPECT_EQ(FloquetNextCheck(40, 35, 1e-3, 9e-4, 1e-8), 46);    // slow decay: the cadence bounds it
+}
+
 TEST(Floquet, ReportSaysWhenTheTrivialMultiplierIsNotAmongThoseComputed)
 {
   auto report = [](const std::vector<std::complex<PetscReal>> &L, PetscInt trivial) {

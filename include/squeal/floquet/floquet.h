@@ -53,6 +53,11 @@ FloquetVerdictResult FloquetVerdict(PetscReal largest_nontrivial, PetscReal triv
 // distance from 1 of the Ritz value nearest it (the trivial multiplier's error, when within 0.1 of
 // 1), if larger, at most 1e-4.
 PetscReal FloquetArnoldiTolerance(PetscReal tol, PetscReal tol_error, const std::vector<std::complex<PetscReal>> &ritz);
+// The block count at which block Arnoldi next computes its Ritz values, after a check at `blocks`
+// whose worst residual `worst` missed `stop`: every block up to 8, then every ceil(count / 8)-th,
+// or sooner where the residual, falling geometrically from `prev_worst` at the check before
+// (`prev_blocks`, 0 for none), reaches `stop` sooner.
+Eigen::Index FloquetNextCheck(Eigen::Index blocks, Eigen::Index prev_blocks, PetscReal prev_worst, PetscReal worst, PetscReal stop);
 
 class FloquetSolver {
 public:
