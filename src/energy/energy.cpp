@@ -53,16 +53,23 @@ struct PointMotion {
   PetscReal N, pr, pi, tr, ti, br, bi, V;
 };
 
-// Largest squared slip speed the fast kernel takes (float's range is 3.4e38).
+// Largest squared slip speed the fast kernel takes (float's range is 3.4e38); none without AVX2
+// and FMA, where Eigen's expression is the faster.
+#if defined(__AVX2__) && defined(__FMA__)
 constexpr PetscReal kPlanarFastMax = 1e30;
+#else
+constexpr PetscReal kPlanarFastMax = 0;
+#endif
 
 // sum over the samples of max(r_n, 0) (s_t u_t - u_b^2) / sqrt(s_t^2 + u_b^2), s_t = V - u_t: the
 // planar law's sliding power. A vector divide and square root cost 14 cycles for 4 samples on this
 // machine, most of the scan (docs/records.md "Energy scan"). Instead: a single-precision estimate
-// y of 1/sqrt (relative error e <= 3.7e-4) and the series of (1 - e)^-1/2 to e^4 in double, which
-// leaves 2e-18 (two Newton steps would leave 6e-14, three cost more). Where
-// s_t = u_b = 0 the numerator is 0 as well, so the squared speed is floored at 1e-30 (float's
-// normal range) instead of tested.
+// y of 1/sqrt(m2) (|y sqrt(m2) - 1| <= 1.5 2^-12, so e = 1 - m2 y^2 within 7.3e-4) and the series
+// of (1 - e)^-1/2 to e^4 in double: the first term left out is 5e-17, below the rounding of e
+// itself (two Newton steps would leave 6e-14; three cost more). m2 is floored at 1e-36, inside
+// float's normal range: below a slip speed of 1e-18 m/s, where the friction direction jumps
+// anyway, the term is scaled down instead of divided by zero (0 at exactly no slip, as the
+// other paths give).
 PetscReal PlanarArcSum(const PetscReal *c, const PetscReal *s, Eigen::Index n, const PointMotion &m)
 {
   Eigen::Index i   = 0;
@@ -70,9 +77,9 @@ PetscReal PlanarArcSum(const PetscReal *c, const PetscReal *s, Eigen::Index n, c
 #if defined(__AVX2__) && defined(__FMA__)
   const __m256d N = _mm256_set1_pd(m.N), pr = _mm256_set1_pd(m.pr), pi = _mm256_set1_pd(m.pi), tr = _mm256_set1_pd(m.tr);
   const __m256d ti = _mm256_set1_pd(m.ti), br = _mm256_set1_pd(m.br), bi = _mm256_set1_pd(m.bi), V = _mm256_set1_pd(m.V);
-  const __m256d zero = _mm256_setzero_pd(), floor = _mm256_set1_pd(1e-30), one = _mm256_set1_pd(1.0);
-  // (1 - e)^-1/2 = 1 + e/2 + 3e^2/8 + 5e^3/16 + 35e^4/128 + ...: with |e| <= 3.7e-4 the first term left
-  // out, 63e^5/256, is 2e-18.
+  const __m256d zero = _mm256_setzero_pd(), floor = _mm256_set1_pd(1e-36), one = _mm256_set1_pd(1.0);
+  // (1 - e)^-1/2 = 1 + e/2 + 3e^2/8 + 5e^3/16 + 35e^4/128 + ...: with |e| <= 7.3e-4 the first term
+  // left out, 63e^5/256, is 5e-17.
   const __m256d c1 = _mm256_set1_pd(0.5), c2 = _mm256_set1_pd(0.375), c3 = _mm256_set1_pd(0.3125), c4 = _mm256_set1_pd(0.2734375);
   __m256d acc = zero;
   for (; i + 4 <= n; i += 4) {
@@ -212,8 +219,8 @@ PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool 
       if (est.impacts) est.P_impacts[k] = P_I;
     }
     if (size > 1) {
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, est.P_reactions.data(), (PetscMPIInt)n_scan, MPIU_REAL, MPI_SUM, comm_));
-      if (est.impacts) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, est.P_impacts.data(), (PetscMPIInt)n_scan, MPIU_REAL, MPI_SUM, comm_));
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, est.P_reactions.data(), (PetscMPIInt)n_scan, MPIU_REAL, MPIU_SUM, comm_));
+      if (est.impacts) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, est.P_impacts.data(), (PetscMPIInt)n_scan, MPIU_REAL, MPIU_SUM, comm_));
     }
   }
   for (PetscInt k = 0; k < n_scan; ++k) {

@@ -791,7 +791,7 @@ Eigen::Index FloquetNextCheck(Eigen::Index blocks, Eigen::Index prev_blocks, Pet
   // Per block, the residual was multiplied by rate on average since the check before.
   const PetscReal rate   = std::pow(worst / prev_worst, 1.0 / (PetscReal)(blocks - prev_blocks));
   const PetscReal needed = std::ceil(std::log(stop / worst) / std::log(rate));
-  return blocks + std::clamp<Eigen::Index>(std::isfinite(needed) ? (Eigen::Index)needed : cadence, 1, cadence);
+  return blocks + (std::isfinite(needed) ? (Eigen::Index)std::clamp<PetscReal>(needed, 1, (PetscReal)cadence) : cadence);
 }
 
 PetscReal FloquetArnoldiTolerance(PetscReal tol, PetscReal tol_error, const std::vector<std::complex<PetscReal>> &ritz)
