@@ -256,6 +256,28 @@ PetscErrorCode EnergyAnalysis::Scan(PetscReal factor, EnergyEstimate &est, bool 
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode EnergyAnalysis::AgreeOnScan(EnergyEstimate &est) const
+{
+  PetscMPIInt size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  if (size == 1) PetscFunctionReturn(0);
+  // Every rank scans the same data, but the planar kernel's first guess of 1/sqrt comes from the
+  // CPU's own table (vendors differ in its last bits), so on a mixed cluster a bisection could end
+  // a bit apart from rank to rank: rank 0's scan holds for all.
+  PetscInt found = est.found;
+  PetscCallMPI(MPI_Bcast(&found, 1, MPIU_INT, 0, comm_));
+  est.found = found != 0;
+  PetscCallMPI(MPI_Bcast(&est.q0, 1, MPIU_REAL, 0, comm_));
+  for (std::vector<PetscReal> *v : {&est.q, &est.P_damping, &est.P_reactions, &est.P_impacts}) {
+    PetscInt n = (PetscInt)v->size();
+    PetscCallMPI(MPI_Bcast(&n, 1, MPIU_INT, 0, comm_));
+    v->resize(n);
+    if (n > 0) PetscCallMPI(MPI_Bcast(v->data(), (PetscMPIInt)n, MPIU_REAL, 0, comm_));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscReal EnergyAnalysis::PowerBalance(PetscReal q) const
 {
   PetscReal P_R, P_I;
@@ -383,6 +405,7 @@ PetscErrorCode EnergyAnalysis::Estimate(const Model &model, const SlidingEquilib
   for (est.extensions = 0; est.extensions <= extend; ++est.extensions) {
     est.q_max_factor = q_max_factor * std::ldexp(1.0, (int)est.extensions);
     PetscCall(Scan(est.q_max_factor, est, &est.found));
+    PetscCall(AgreeOnScan(est));
     if (est.found) break;
   }
   if (!est.found) est.extensions = extend;

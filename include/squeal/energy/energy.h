@@ -90,6 +90,7 @@ private:
   // Scan (0, factor q_sep] and bisect the first + to - crossing; *found false if there is none.
   // Collective: polls the interrupt (every rank scans the same replicated points).
   PetscErrorCode Scan(PetscReal factor, EnergyEstimate &est, bool *found) const;
+  PetscErrorCode AgreeOnScan(EnergyEstimate &est) const; // rank 0's scan, q0 and found on every rank
 
   MPI_Comm                            comm_;
   const ContactSet                   *cs_ = nullptr;
