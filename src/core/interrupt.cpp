@@ -1,5 +1,6 @@
 #include "squeal/core/interrupt.h"
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -109,6 +110,36 @@ PetscErrorCode InterruptPoint(MPI_Comm comm, const char *where)
   PetscFunctionBeginUser;
   PetscCall(InterruptRequested(comm, &stop));
   PetscCheck(!stop, comm, PETSC_ERR_SIG, "interrupted by %s during %s", InterruptSignalName(), where);
+  PetscFunctionReturn(0);
+}
+
+InterruptPacer::InterruptPacer(MPI_Comm comm, const char *where) : comm_(comm), where_(where)
+{
+  // A constructor cannot return an error code; MPI_Comm_size only fails on an invalid comm,
+  // which the first poll's Allreduce would report.
+  if (MPI_Comm_size(comm, &size_) != MPI_SUCCESS) size_ = 2;
+  last_ = MPI_Wtime();
+}
+
+PetscErrorCode InterruptPacer::Poll()
+{
+  PetscFunctionBeginUser;
+  count_ = 0;
+  ++polls_;
+  if (size_ == 1) {
+    PetscCheck(g_signal == 0, comm_, PETSC_ERR_SIG, "interrupted by %s during %s", InterruptSignalName(), where_);
+    PetscFunctionReturn(0);
+  }
+  const double now = MPI_Wtime(), dt = now - last_;
+  // This rank's proposal for the next count, negated so that one MPI_MAX gives both the signal
+  // and the smallest proposal (the slowest rank's pace).
+  const double grow = dt > 0 ? kSpacing / dt : 4.0;
+  const double next = std::clamp((double)every_ * std::min(grow, 4.0), 1.0, 1e6);
+  int          mine[2] = {g_signal != 0, -(int)next}, all[2];
+  PetscCallMPI(MPI_Allreduce(mine, all, 2, MPI_INT, MPI_MAX, comm_));
+  every_ = -all[1];
+  last_  = MPI_Wtime();
+  PetscCheck(all[0] == 0, comm_, PETSC_ERR_SIG, "interrupted by %s during %s", InterruptSignalName(), where_);
   PetscFunctionReturn(0);
 }
 

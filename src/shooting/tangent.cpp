@@ -71,9 +71,9 @@ PetscErrorCode Shooting::Flow(Vec U, Vec dU, PetscReal T, Vec U1, Vec dU1, Eigen
   }
   const PetscInt run = flow_stop_ > 0 ? std::min(flow_stop_, steps) : steps;
   flow_passes_       = 0;
+  InterruptPacer pacer(comm_, "a period integration"); // one flow: minutes at FE scale
   for (PetscInt i = 0; i < run; ++i) {
-    // SIGINT/SIGTERM within a period (one flow: minutes at FE scale with many steps).
-    if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(comm_, "a period integration"));
+    if (interruptible) PetscCall(pacer.Step());
     if (kernel) {
       if (rank_ == 0) {
         kernel->Step(lead_.data(), lead_.data() + N_, r, &info.contact);
@@ -259,7 +259,8 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
     if (rank_ == 0) err = TangentColumns(PETSC_COMM_SELF, 0, k, dZ0, dT, modal, dZ1);
     PetscCallMPI(MPI_Bcast(&err, 1, MPI_INT, 0, comm_));
     if (err && rank_ == 0) PetscCall(err);
-    PetscCheck(!err, PETSC_COMM_SELF, err, "shooting: the tangent integration on rank 0 failed");
+    // On comm_, where this rank is not the first: rank 0 has said why (an interrupt, or the error).
+    PetscCheck(!err, comm_, err, "shooting: the tangent integration on rank 0 failed");
     PetscMPIInt n;
     PetscCall(PetscMPIIntCast(dZ1.size(), &n));
     PetscCallMPI(MPI_Bcast(dZ1.data(), n, MPIU_REAL, 0, comm_));
@@ -290,8 +291,9 @@ PetscErrorCode Shooting::TangentColumns(MPI_Comm poll, Eigen::Index c0, Eigen::I
   // keep the factors along this flow while they fit in -shoot_tangent_cache_mb.
   const bool cache = nc > 0 && trF_mb_ <= tangent_cache_mb;
   if (cache && (PetscInt)trF_.size() != steps) trF_.assign(steps, {});
+  InterruptPacer pacer(poll, "a tangent integration");
   for (PetscInt i = 0; i < steps; ++i) {
-    if (interruptible && (i & 255) == 255) PetscCall(InterruptPoint(poll, "a tangent integration"));
+    if (interruptible) PetscCall(pacer.Step());
     sd.factor = cache ? &trF_[i] : nullptr;
     sdUi_ = dUs.col(i), sdUn_ = dUs.col(i + 1), sc_ = Cs.col(i);
     if (nc) sr_ = trR_.col(i), svs_ = trV_.col(i), sve_ = trV_.col(i + 1);
@@ -357,7 +359,7 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
     // The steady-sliding linearisation's monodromy (integration/monodromy.h), at the equilibrium
     // reactions: every point closed and sliding, slip direction against V_c.
     PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
-    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_, size_ > 1 ? comm_ : PETSC_COMM_SELF));
+    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_, size_ > 1 ? comm_ : PETSC_COMM_SELF, interruptible ? "the linear preconditioner's monodromy" : nullptr));
     jpc_.Reset();
     PetscCall(PetscLogEventEnd(shoot_ev::linear_pc, 0, 0, 0, 0));
   }

@@ -701,5 +701,9 @@ TEST(Theta, LinearMonodromyIsTheStepTangentToTheStepsPower)
     Eigen::MatrixXd Ps;
     ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, Ps, model.comm()), 0);
     EXPECT_LT((Ps - ref).norm(), 1e-12 * ref.norm()) << steps << " steps, split";
+    // Polled for signals (shooting's linear preconditioner): the same products, in column slices.
+    Eigen::MatrixXd Pp;
+    ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, Pp, model.comm(), "the test's monodromy"), 0);
+    EXPECT_LT((Pp - ref).norm(), 1e-12 * ref.norm()) << steps << " steps, polled";
   }
 }

@@ -27,6 +27,33 @@ PetscErrorCode InterruptRequested(MPI_Comm comm, bool *stop);
 // whose results file keeps what earlier analyses wrote (status "interrupted ...").
 PetscErrorCode InterruptPoint(MPI_Comm comm, const char *where);
 
+// InterruptPoint once per step of a loop whose steps cost anything from a microsecond (a 3-DOF
+// step) to a second (a block of tangent columns of a reduced brake), at a pace set by the time
+// the steps take. Under mpiexec a signal has to be obeyed within about a second: Open MPI passes
+// SIGTERM on and sends SIGKILL one second later (odls_base_sigkill_timeout), and a fixed count
+// (every 256 steps) let 30 ms steps of a 1594-DOF reduced brake be killed before their poll,
+// with every result lost. On one rank a poll is a flag test, made every step; on several ranks
+// the ranks agree in each poll (one Allreduce) on how many steps to the next, about kSpacing
+// seconds of their slowest rank's work, never more than 4 times the last count.
+class InterruptPacer {
+public:
+  static constexpr double kSpacing = 0.05; // seconds between polls on several ranks
+
+  InterruptPacer(MPI_Comm comm, const char *where);
+  // Collective: every rank calls it once per step, before the step.
+  PetscErrorCode Step() { return ++count_ < every_ ? PetscErrorCode(0) : Poll(); }
+  PetscInt       Polls() const { return polls_; }
+
+private:
+  PetscErrorCode Poll();
+
+  MPI_Comm    comm_;
+  const char *where_;
+  PetscMPIInt size_  = 1;
+  PetscInt    count_ = 0, every_ = 1, polls_ = 0;
+  double      last_  = 0; // MPI_Wtime of the last poll
+};
+
 // The results file a second signal salvages (rank 0's writer, io/h5.cpp): its temporary and the
 // name it gets (the target, or the ".failed.h5" sibling of a complete file). nullptr: none.
 // Ready: the temporary is consistent on disk now (just flushed, nothing written since).

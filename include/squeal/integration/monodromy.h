@@ -14,6 +14,9 @@ namespace squeal {
 // Dense back end only.
 // comm: ranks that each hold the whole model (the dense back end) and share the products of the
 // powering, each forming a block of columns (compute-bound, so two ranks halve it); by default one.
-PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P, MPI_Comm comm = PETSC_COMM_SELF);
+// poll: if given, SIGINT/SIGTERM are polled on comm (collective, core/interrupt.h) within the
+// products, which take seconds from N ~ 1500 (a product of order 3188 is about 65 Gflop).
+PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P, MPI_Comm comm = PETSC_COMM_SELF,
+                               const char *poll = nullptr);
 
 } // namespace squeal
