@@ -1,12 +1,16 @@
 #include "squeal/core/interrupt.h"
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <thread>
 
 #include <fcntl.h>
+#include <semaphore.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -16,20 +20,35 @@ namespace {
 
 volatile std::sig_atomic_t g_signal = 0;
 struct timespec            g_first{}; // when g_signal arrived
-// The salvage of a second signal: set only while g_ready is 0, read by the handler only when 1.
-char                       g_part[4096], g_target[4096];
-volatile std::sig_atomic_t g_ready = 0;
+// The salvage: g_part and g_target set only in state kBusy, read by the handler or the watchdog
+// only after they moved the state from kReady to kSalvaged (lock-free, so async-signal-safe).
+enum : int { kBusy = 0, kReady = 1, kSalvaged = 2 };
+char             g_part[4096], g_target[4096];
+std::atomic<int> g_state{kBusy};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free state");
+// The watchdog under Open MPI's mpiexec (InterruptSalvage in the header): woken by the handler.
+sem_t  g_wake;
+bool   g_watch = false;
+double g_grace = 0.5; // seconds from the signal to the salvage
 
 // write(2) of a C string (async-signal-safe, unlike stdio).
 void SafeWrite(const char *s) { (void)!write(STDERR_FILENO, s, std::strlen(s)); }
 
+// Claims the consistent temporary for a salvage (kReady -> kSalvaged) and renames it.
+bool ClaimAndRename()
+{
+  int ready = kReady;
+  return g_state.compare_exchange_strong(ready, kSalvaged) && std::rename(g_part, g_target) == 0;
+}
+
 void Salvage(int sig)
 {
   const char *name = sig == SIGINT ? "SIGINT" : sig == SIGPIPE ? "SIGPIPE" : "SIGTERM";
+  if (g_state.load() == kSalvaged) return; // the watchdog did it
   if (g_part[0] == 0) return;
   SafeWrite("squeal: second ");
   SafeWrite(name);
-  if (g_ready && std::rename(g_part, g_target) == 0) {
+  if (ClaimAndRename()) {
     // The file says "running (... written after X)": the analyses up to X are complete in it.
     SafeWrite(": stopped at once; the results written so far are in ");
     SafeWrite(g_target);
@@ -62,6 +81,7 @@ extern "C" void OnSignal(int sig)
   }
   g_first  = now;
   g_signal = sig;
+  if (g_watch) sem_post(&g_wake); // async-signal-safe
   // Open MPI's mpiexec, told to stop, no longer reads its ranks' output (a pty): rank 0 then
   // blocks writing a progress line and never reaches the results file before the SIGKILL. From
   // here on standard output, unless it is a regular file, goes to /dev/null (the interrupted
@@ -76,11 +96,41 @@ extern "C" void OnSignal(int sig)
   }
 }
 
+// Waits for the first signal, then salvages the results file g_grace seconds later unless the run
+// has begun writing meanwhile (its clean stop) or has gone. No MPI, no allocation, no stdio.
+void Watchdog()
+{
+  while (sem_wait(&g_wake) != 0) {} // EINTR
+  struct timespec d{(time_t)g_grace, (long)((g_grace - (double)(time_t)g_grace) * 1e9)};
+  while (nanosleep(&d, &d) != 0) {}
+  if (g_part[0] == 0 || g_state.load() != kReady) return;
+  if (ClaimAndRename()) {
+    SafeWrite("squeal: mpiexec stops the ranks one second after passing the signal on, before this step's next poll: the results written so far are in ");
+    SafeWrite(g_target);
+    SafeWrite("\n");
+  }
+}
+
 } // namespace
 
 PetscErrorCode InstallInterruptHandlers()
 {
   PetscFunctionBeginUser;
+  // Only under Open MPI's mpiexec, whose kill follows its signal (a terminal's Ctrl-C on one
+  // process, or a batch system's SIGTERM with its own grace, waits for the clean stop). A
+  // longer kill timeout set by the user (the MCA variable) leaves more time for the clean stop.
+  if (std::getenv("OMPI_COMM_WORLD_SIZE") && sem_init(&g_wake, 0, 0) == 0) {
+    if (const char *t = std::getenv("OMPI_MCA_odls_base_sigkill_timeout")) {
+      char        *end = nullptr;
+      const double v   = std::strtod(t, &end);
+      if (end != t && v > 1) g_grace = v - 0.5;
+    }
+    try {
+      std::thread(Watchdog).detach();
+      g_watch = true;
+    } catch (...) { // no thread: the polls alone, as without mpiexec
+    }
+  }
   // Replaces PETSc's handler (installed at initialisation, it aborts on SIGTERM) and the default
   // action (SIGINT terminates): both would lose every result not yet written.
   struct sigaction sa{};
@@ -145,14 +195,25 @@ PetscErrorCode InterruptPacer::Poll()
 
 void InterruptSalvage(const char *part, const char *target)
 {
-  g_ready = 0;
+  // Busy first (the watchdog claims only a ready file); a salvaged one is gone to its name, and
+  // no other is offered.
+  for (int now = g_state.load(); !g_state.compare_exchange_weak(now, kBusy);)
+    if (now == kSalvaged) return;
+  if (g_state.load() == kSalvaged) return;
   g_part[0] = g_target[0] = 0;
   if (!part || !target || std::strlen(part) >= sizeof g_part || std::strlen(target) >= sizeof g_target) return;
   std::memcpy(g_target, target, std::strlen(target) + 1);
   std::memcpy(g_part, part, std::strlen(part) + 1);
 }
 
-void InterruptSalvageReady(bool ready) { g_ready = ready ? 1 : 0; }
+bool InterruptSalvageReady(bool ready)
+{
+  int from = ready ? kBusy : kReady;
+  g_state.compare_exchange_strong(from, ready ? kReady : kBusy);
+  return g_state.load() != kSalvaged;
+}
+
+bool InterruptSalvaged() { return g_state.load() == kSalvaged; }
 
 int InterruptSignal() { return (int)g_signal; }
 

@@ -71,7 +71,10 @@ PetscErrorCode H5Writer::CheckOpen()
 {
   PetscFunctionBeginUser;
   PetscCheck(open_, comm_ == MPI_COMM_NULL ? PETSC_COMM_SELF : comm_, PETSC_ERR_ORDER, "results file is not open");
-  InterruptSalvageReady(false); // a write follows: the file on disk is no longer known to be consistent
+  // A write follows: the file on disk is no longer known to be consistent. Unless it was salvaged
+  // after a signal (core/interrupt.h): then it is not touched again.
+  if (!InterruptSalvageReady(false) && err_.empty())
+    err_ = "the results written before the signal were moved to their name (said above); nothing more is written to them";
   PetscFunctionReturn(0);
 }
 
@@ -196,7 +199,11 @@ PetscErrorCode H5Writer::Close()
   open_ = false;
   InterruptSalvage(nullptr, nullptr);
   PetscMPIInt aside = 0;
-  if (rank_ == 0) {
+  if (rank_ == 0 && InterruptSalvaged()) {
+    // Renamed already, and it may be killed any moment: closing would write to it again.
+    file_ = -1;
+    if (err_.empty()) err_ = "the results written before the signal were moved to their name (said above)";
+  } else if (rank_ == 0) {
     if (H5Fclose(file_) < 0) Fail("close the file");
     file_ = -1;
     std::string target = path_;

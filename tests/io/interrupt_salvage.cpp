@@ -2,24 +2,29 @@
 // again half a second later. The results file must then be readable under its name if it was
 // consistent on disk (just flushed), and left as the temporary, said so, if a write was in hand.
 //
-//   interrupt_salvage FILE flushed|writing|complete
+//   interrupt_salvage FILE flushed|writing|complete|stuck
 //
 // Writes /stability/value = 42 and a checkpoint's status, flushes, then (mode "writing") starts a
 // further write without flushing; raises SIGTERM, waits 0.6 s as a stuck run would, raises it again
 // and must die by it. Mode "complete" writes a complete file and exits 0 (the one a salvage must
-// not replace). The checker (check_interrupt_salvage.py) reads what is left.
+// not replace). Mode "stuck" (run under Open MPI's mpiexec, which kills its ranks a second after
+// passing a signal on) says "flushed" on stdout and computes for 10 s without a poll: the
+// watchdog must salvage the file before the kill. The checker (check_interrupt_salvage.py) reads
+// what is left.
 #include "squeal/core/interrupt.h"
 #include "squeal/io/h5.h"
 
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 
 int main(int argc, char **argv)
 {
   PetscCall(PetscInitialize(&argc, &argv, nullptr, "interrupt_salvage FILE flushed|writing|complete"));
-  PetscCheck(argc == 3 && (!std::strcmp(argv[2], "flushed") || !std::strcmp(argv[2], "writing") || !std::strcmp(argv[2], "complete")),
-             PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "usage: interrupt_salvage FILE flushed|writing|complete");
+  PetscCheck(argc == 3 && (!std::strcmp(argv[2], "flushed") || !std::strcmp(argv[2], "writing") || !std::strcmp(argv[2], "complete") ||
+                           !std::strcmp(argv[2], "stuck")),
+             PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "usage: interrupt_salvage FILE flushed|writing|complete|stuck");
   PetscCall(squeal::InstallInterruptHandlers());
   {
     squeal::io::H5Writer out;
@@ -28,6 +33,17 @@ int main(int argc, char **argv)
     PetscCall(out.SetStatus("running (complete up to the stability analysis)"));
     PetscCall(out.Flush());
     if (!std::strcmp(argv[2], "complete")) {
+      PetscCall(out.SetStatus("complete"));
+      PetscCall(out.Close());
+      PetscCall(PetscFinalize());
+      return 0;
+    }
+    if (!std::strcmp(argv[2], "stuck")) {
+      std::printf("flushed\n");
+      std::fflush(stdout);
+      struct timespec left = {10, 0};
+      while (nanosleep(&left, &left) != 0) {} // the signal interrupts the sleep: sleep on
+      PetscCall(squeal::InterruptPoint(PETSC_COMM_SELF, "the test's stuck step")); // too late
       PetscCall(out.SetStatus("complete"));
       PetscCall(out.Close());
       PetscCall(PetscFinalize());

@@ -1,19 +1,25 @@
 #!/usr/bin/env python3
 """A second signal keeps the results file readable when it was just flushed (issue 20, item 1).
 
-    check_interrupt_salvage.py PROGRAM DIR
+    check_interrupt_salvage.py PROGRAM DIR [MPIEXEC ARGS...]
 
 Runs PROGRAM (tests/io/interrupt_salvage.cpp) in its two modes and checks: it dies by SIGTERM;
 after a flush the file is under its name, readable by the results reader (scripts/squeal/results.py), with /stability's value and the status
 "running (complete up to the stability analysis)", and no temporary left; in the middle of a write
 the message names the temporary left instead. Then, with a complete results file already at the
 name, the salvaged file goes beside it (".failed.h5") and the complete one is untouched.
+
+With MPIEXEC (Open MPI's, which kills its ranks a second after passing SIGTERM on): PROGRAM's
+"stuck" mode under it, SIGTERM to mpiexec once the file is flushed; the rank computes on without
+a poll, so the watchdog must have moved the file to its name (status "running (complete up to the
+stability analysis)") before the kill, said so, and left no temporary.
 """
 import glob
 import os
 import signal
 import subprocess
 import sys
+import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
 from squeal.results import Results, status_of  # noqa: E402
@@ -25,7 +31,7 @@ def run(prog, path, mode):
     return p
 
 
-def main(prog, d):
+def main(prog, d, mpiexec):
     os.makedirs(d, exist_ok=True)
     path = os.path.join(d, "salvage.h5")
     for f in glob.glob(os.path.join(d, "*salvage*")):
@@ -62,6 +68,31 @@ def main(prog, d):
     checks.append((s == "complete", "beside: the complete file is untouched"))
     checks.append((os.path.exists(failed) and failed in p.stderr, f"beside: salvaged to {failed}, and said"))
 
+    if mpiexec:
+        os.remove(path)
+        cmd = mpiexec + ["-n", "1", prog, path, "stuck"]
+        print("+ " + " ".join(cmd))
+        p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = p.stdout.readline()
+        t0 = time.time()
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=60)
+        dt = time.time() - t0
+        print(f"{line}{out}--- stderr:\n{err}")
+        checks.append((line.strip() == "flushed", f"stuck: the file flushed before the signal ('{line.strip()}')"))
+        checks.append((dt < 5, f"stuck: mpiexec ended {dt:.2f} s after SIGTERM (the kill, not the 10 s step)"))
+        checks.append((p.returncode != 0, f"stuck: mpiexec exit code {p.returncode} (not 0)"))
+        checks.append(("results written so far are in " + path in err, "stuck: the watchdog's message names the file"))
+        ok = os.path.exists(path)
+        checks.append((ok, f"stuck: {path} exists"))
+        if ok:
+            with Results(path) as r:
+                status = r.status
+                value = float(r.stability.attrs["value"])
+            checks.append((status == "running (complete up to the stability analysis)", f"stuck: status '{status}'"))
+            checks.append((value == 42.0, f"stuck: /stability value {value}"))
+        checks.append((not glob.glob(os.path.join(d, ".salvage.h5.part-*")), "stuck: no temporary left"))
+
     bad = 0
     for good, what in checks:
         print(("ok:   " if good else "FAIL: ") + what)
@@ -71,4 +102,4 @@ def main(prog, d):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main(sys.argv[1], sys.argv[2], sys.argv[3:]))

@@ -56,9 +56,18 @@ private:
 
 // The results file a second signal salvages (rank 0's writer, io/h5.cpp): its temporary and the
 // name it gets (the target, or the ".failed.h5" sibling of a complete file). nullptr: none.
-// Ready: the temporary is consistent on disk now (just flushed, nothing written since).
+// Ready: the temporary is consistent on disk now (just flushed, nothing written since). Returns
+// false once the file has been salvaged: it must not be written or closed again.
+//
+// Under Open MPI's mpiexec the salvage also comes without a second signal: mpiexec passes SIGINT
+// or SIGTERM on to the ranks as SIGTERM and kills them one second later
+// (odls_base_sigkill_timeout), and some steps of a large model take longer than that between two
+// polls (a step set-up, a factorisation). Half a second before the kill, if the run has not begun
+// its last write, a watchdog thread moves the consistent temporary to its name, as the second
+// signal would; a run that reaches its poll in time writes its results as usual.
 void InterruptSalvage(const char *part, const char *target);
-void InterruptSalvageReady(bool ready);
+bool InterruptSalvageReady(bool ready);
+bool InterruptSalvaged();
 
 // The signal received on this rank (0 if none), and its name ("SIGINT", "SIGTERM").
 int         InterruptSignal();
