@@ -73,6 +73,7 @@ struct ReductionInfo {
   PetscReal              cpu_factor = 0, cpu_modes = 0, cpu_static = 0, cpu_project = 0;
   bool                   rayleigh = false; // C detected as a M + b K and projected as a M_r + b K_r
   PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
+  PetscLogDouble         mem_rank_hwm = 0;    // bytes, the largest rank's peak resident set size so far
   // Interface reduction (0: none): one normal coordinate per point kept, the interface's characteristic constraint modes kept and their frequencies (Hz).
   PetscInt               n_normal = 0, n_inplane_modes = 0; // n_inplane_modes: every column of the interface basis
   PetscInt               n_interface_statics = 0;           // of them, added for the contact normals' statics
