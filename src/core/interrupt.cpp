@@ -19,6 +19,10 @@ namespace squeal {
 namespace {
 
 volatile std::sig_atomic_t g_signal = 0;
+// The signal another rank received, learnt in a collective poll (a batch system or a user may
+// signal one rank only): for the message and the results file's status on every rank. Not the
+// handler's g_signal, whose "second signal" logic is about this process's own signals.
+int g_remote = 0;
 struct timespec            g_first{}; // when g_signal arrived
 // The salvage: g_part and g_target set only in state kBusy, read by the handler or the watchdog
 // only after they moved the state from kReady to kSalvaged (lock-free, so async-signal-safe).
@@ -147,9 +151,10 @@ PetscErrorCode InterruptRequested(MPI_Comm comm, bool *stop)
   PetscMPIInt size, here, any;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  here = g_signal != 0;
+  here = (PetscMPIInt)g_signal;
   if (size > 1) PetscCallMPI(MPI_Allreduce(&here, &any, 1, MPI_INT, MPI_MAX, comm));
   else any = here;
+  if (any && !here) g_remote = any;
   *stop = any != 0;
   PetscFunctionReturn(0);
 }
@@ -185,8 +190,9 @@ PetscErrorCode InterruptPacer::Poll()
   // and the smallest proposal (the slowest rank's pace).
   const double grow = dt > 0 ? kSpacing / dt : 4.0;
   const double next = std::clamp((double)every_ * std::min(grow, 4.0), 1.0, 1e6);
-  int          mine[2] = {g_signal != 0, -(int)next}, all[2];
+  int          mine[2] = {(int)g_signal, -(int)next}, all[2];
   PetscCallMPI(MPI_Allreduce(mine, all, 2, MPI_INT, MPI_MAX, comm_));
+  if (all[0] && !g_signal) g_remote = all[0];
   every_ = -all[1];
   last_  = MPI_Wtime();
   PetscCheck(all[0] == 0, comm_, PETSC_ERR_SIG, "interrupted by %s during %s", InterruptSignalName(), where_);
@@ -215,11 +221,11 @@ bool InterruptSalvageReady(bool ready)
 
 bool InterruptSalvaged() { return g_state.load() == kSalvaged; }
 
-int InterruptSignal() { return (int)g_signal; }
+int InterruptSignal() { return g_signal ? (int)g_signal : g_remote; }
 
 const char *InterruptSignalName()
 {
-  switch (g_signal) {
+  switch (InterruptSignal()) {
   case SIGINT: return "SIGINT";
   case SIGTERM: return "SIGTERM";
   case SIGPIPE: return "SIGPIPE";

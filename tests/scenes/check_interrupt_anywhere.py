@@ -2,13 +2,15 @@
 """A signal inside a solver's own loop (an eigensolve, a reduction) is obeyed (issue 20, item 1).
 
     check_interrupt_anywhere.py --output F --after REGEX [--wait S] [--signal INT|TERM] [--within S]
-                                [--where REGEX] [--results interrupted|absent] -- cmd...
+                                [--where REGEX] [--results interrupted|absent] [--to-rank K] -- cmd...
 
 Starts cmd, waits for a stdout line matching REGEX and S more seconds (inside the long solve),
 sends the signal and checks: the run stops within --within seconds (default 3: Open MPI's mpiexec
 itself takes one second to pass SIGTERM on), exit code in 1..127, stderr says
 "interrupted by SIG... during" (followed by a match of --where, if given: the place the signal
-must be obeyed at), and F exists with the root status "interrupted (SIG...". With --results absent
+must be obeyed at), and F exists with the root status "interrupted (SIG...". With --to-rank K (cmd
+an Open MPI mpiexec) the signal goes to rank K's process alone, as a user's kill or a batch system
+may send it, and the other ranks must learn it in their polls. With --results absent
 (a signal while the model is built, e.g. during its reduction, before any analysis opens F): no F
 is left behind instead.
 """
@@ -21,6 +23,20 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
 from squeal.results import status_of  # noqa: E402
+
+
+def rank_pid(launcher, rank):
+    """The pid of the launcher's child with OMPI_COMM_WORLD_RANK = rank."""
+    kids = []
+    for task in os.listdir(f"/proc/{launcher}/task"):
+        with open(f"/proc/{launcher}/task/{task}/children") as f:
+            kids += [int(k) for k in f.read().split()]
+    for k in kids:
+        with open(f"/proc/{k}/environ", "rb") as f:
+            env = dict(e.split(b"=", 1) for e in f.read().split(b"\0") if b"=" in e)
+        if env.get(b"OMPI_COMM_WORLD_RANK") == rank.encode():
+            return k
+    raise SystemExit(f"no child of {launcher} is rank {rank}")
 
 
 def main(argv):
@@ -45,7 +61,12 @@ def main(argv):
     time.sleep(wait)
     running = p.poll() is None
     t0 = time.time()
-    p.send_signal(sig)
+    if "--to-rank" in args:
+        pid = rank_pid(p.pid, args["--to-rank"])
+        print(f"signalling rank {args['--to-rank']} alone (pid {pid})")
+        os.kill(pid, sig)
+    else:
+        p.send_signal(sig)
     rest, err = p.communicate(timeout=120)
     dt = time.time() - t0
     print("".join(seen) + rest)

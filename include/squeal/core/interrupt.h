@@ -69,7 +69,8 @@ void InterruptSalvage(const char *part, const char *target);
 bool InterruptSalvageReady(bool ready);
 bool InterruptSalvaged();
 
-// The signal received on this rank (0 if none), and its name ("SIGINT", "SIGTERM").
+// The signal received on this rank, or learnt from another rank in a collective poll (0 if none),
+// and its name ("SIGINT", "SIGTERM").
 int         InterruptSignal();
 const char *InterruptSignalName();
 
