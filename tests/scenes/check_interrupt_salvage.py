@@ -31,6 +31,19 @@ def run(prog, path, mode):
     return p
 
 
+def salvaged(checks, path, d, tag):
+    """The file moved to its name as it was at the flush: readable, status and value, no temporary."""
+    ok = os.path.exists(path)
+    checks.append((ok, f"{tag}: {path} exists"))
+    if ok:
+        with Results(path) as r:
+            status = r.status
+            value = float(r.stability.attrs["value"])
+        checks.append((status == "running (complete up to the stability analysis)", f"{tag}: status '{status}'"))
+        checks.append((value == 42.0, f"{tag}: /stability value {value}"))
+    checks.append((not glob.glob(os.path.join(d, ".salvage.h5.part-*")), f"{tag}: no temporary left"))
+
+
 def main(prog, d, mpiexec):
     os.makedirs(d, exist_ok=True)
     path = os.path.join(d, "salvage.h5")
@@ -40,15 +53,7 @@ def main(prog, d, mpiexec):
     p = run(prog, path, "flushed")
     checks.append((p.returncode == -signal.SIGTERM, f"flushed: killed by SIGTERM (exit {p.returncode})"))
     checks.append(("results written so far are in " + path in p.stderr, "flushed: the message names the file"))
-    ok = os.path.exists(path)
-    if ok:
-        with Results(path) as r:
-            status = r.status
-            value = float(r.stability.attrs["value"])
-        checks.append((status == "running (complete up to the stability analysis)", f"flushed: status '{status}'"))
-        checks.append((value == 42.0, f"flushed: /stability value {value}"))
-    checks.append((ok, f"flushed: {path} exists"))
-    checks.append((not glob.glob(os.path.join(d, ".salvage.h5.part-*")), "flushed: no temporary left"))
+    salvaged(checks, path, d, "flushed")
 
     os.remove(path)
     p = run(prog, path, "writing")
@@ -83,15 +88,7 @@ def main(prog, d, mpiexec):
         checks.append((dt < 5, f"stuck: mpiexec ended {dt:.2f} s after SIGTERM (the kill, not the 10 s step)"))
         checks.append((p.returncode != 0, f"stuck: mpiexec exit code {p.returncode} (not 0)"))
         checks.append(("results written so far are in " + path in err, "stuck: the watchdog's message names the file"))
-        ok = os.path.exists(path)
-        checks.append((ok, f"stuck: {path} exists"))
-        if ok:
-            with Results(path) as r:
-                status = r.status
-                value = float(r.stability.attrs["value"])
-            checks.append((status == "running (complete up to the stability analysis)", f"stuck: status '{status}'"))
-            checks.append((value == 42.0, f"stuck: /stability value {value}"))
-        checks.append((not glob.glob(os.path.join(d, ".salvage.h5.part-*")), "stuck: no temporary left"))
+        salvaged(checks, path, d, "stuck")
 
     bad = 0
     for good, what in checks:
