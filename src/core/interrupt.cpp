@@ -203,9 +203,10 @@ void InterruptSalvage(const char *part, const char *target)
 {
   // Busy first (the watchdog claims only a ready file); a salvaged one is gone to its name, and
   // no other is offered.
-  for (int now = g_state.load(); !g_state.compare_exchange_weak(now, kBusy);)
+  for (int now = g_state.load();;) {
     if (now == kSalvaged) return;
-  if (g_state.load() == kSalvaged) return;
+    if (g_state.compare_exchange_weak(now, kBusy)) break;
+  }
   g_part[0] = g_target[0] = 0;
   if (!part || !target || std::strlen(part) >= sizeof g_part || std::strlen(target) >= sizeof g_target) return;
   std::memcpy(g_target, target, std::strlen(target) + 1);

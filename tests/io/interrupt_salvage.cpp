@@ -8,9 +8,10 @@
 // further write without flushing; raises SIGTERM, waits 0.6 s as a stuck run would, raises it again
 // and must die by it. Mode "complete" writes a complete file and exits 0 (the one a salvage must
 // not replace). Mode "stuck" (run under Open MPI's mpiexec, which kills its ranks a second after
-// passing a signal on) says "flushed" on stdout and computes for 10 s without a poll: the
-// watchdog must salvage the file before the kill. The checker (check_interrupt_salvage.py) reads
-// what is left.
+// passing a signal on) says "flushed" on stdout and computes without a poll until the watchdog
+// has salvaged the file (at most 10 s), then reaches its poll late, as a long step would: the
+// error unwinds through the writer, which must leave the salvaged file as it was. The checker
+// (check_interrupt_salvage.py) reads what is left.
 #include "squeal/core/interrupt.h"
 #include "squeal/io/h5.h"
 
@@ -41,9 +42,9 @@ int main(int argc, char **argv)
     if (!std::strcmp(argv[2], "stuck")) {
       std::printf("flushed\n");
       std::fflush(stdout);
-      struct timespec left = {10, 0};
-      while (nanosleep(&left, &left) != 0) {} // the signal interrupts the sleep: sleep on
-      PetscCall(squeal::InterruptPoint(PETSC_COMM_SELF, "the test's stuck step")); // too late
+      const struct timespec tick = {0, 10000000};
+      for (int i = 0; i < 1000 && !squeal::InterruptSalvaged(); ++i) nanosleep(&tick, nullptr);
+      PetscCall(squeal::InterruptPoint(PETSC_COMM_SELF, "the test's stuck step")); // late: after the salvage
       PetscCall(out.SetStatus("complete"));
       PetscCall(out.Close());
       PetscCall(PetscFinalize());
