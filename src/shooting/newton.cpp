@@ -44,6 +44,7 @@ PetscErrorCode ShootingCallbacks::Jacobian(SNES snes, Vec x, Mat, Mat, void *ctx
     PetscCall(VecCopy(x, s->xbase_));
     PetscCall(s->Residual(x, s->fbase_));
   }
+  if (s->jlinear_) PetscCall(s->BuildLinearPreconditioner(x));
   PetscFunctionReturn(0);
 }
 
@@ -181,7 +182,8 @@ PetscErrorCode ShootingCallbacks::Converged(SNES snes, PetscInt it, PetscReal, P
     PetscCall(VecNorm(s->tmp_, NORM_2, &dq));
     PetscBool same = PETSC_FALSE;
     if (s->tr_valid_) PetscCall(VecEqual(x, s->trx_, &same));
-    if (same && s->trR_.rows() > 0) {
+    const bool regime = same && s->trR_.rows() > 0; // the reactions are kept along the flow for exact products only
+    if (regime) {
       std::vector<int> st;
       for (Eigen::Index i = 0; i < s->trR_.cols(); ++i) {
         s->ti_->Contact().Status(s->trR_.col(i), st);
@@ -193,11 +195,13 @@ PetscErrorCode ShootingCallbacks::Converged(SNES snes, PetscInt it, PetscReal, P
     PetscInt kit = 0;
     PetscCall(SNESGetKSP(snes, &ksp));
     if (it > 0) PetscCall(KSPGetIterationNumber(ksp, &kit));
+    char rtxt[64] = "regime not recorded";
+    if (regime) std::snprintf(rtxt, sizeof rtxt, "open %.1f%% stick %.1f%%", 100 * (double)open, 100 * (double)stick);
     PetscCall(PetscPrintf(s->comm_,
                           "  shooting %2" PetscInt_FMT ": ||H||/||Z0|| = %.3e  T = %.9f s  dT/T = %.3e  |U-Ue| = %.3e |dU| = %.3e"
-                          "  open %.1f%% stick %.1f%%  ksp %" PetscInt_FMT "%s\n",
-                          it, (double)res, (double)T, it > 0 ? (double)(std::abs(dT) / T) : 0.0, (double)dq, (double)ndU,
-                          100 * (double)open, 100 * (double)stick, kit, mtxt));
+                          "  %s  ksp %" PetscInt_FMT "%s\n",
+                          it, (double)res, (double)T, it > 0 ? (double)(std::abs(dT) / T) : 0.0, (double)dq, (double)ndU, rtxt, kit,
+                          mtxt));
   }
   if (PetscIsInfOrNanReal(fnorm)) {
     *reason        = SNES_DIVERGED_FNORM_NAN;
@@ -528,7 +532,20 @@ PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
     PetscFunctionReturn(0);
   }
   PetscCall(VecNorm(x, NORM_2, &nx));
-  const PetscReal eps = fd_step * nx / nv;
+  PetscReal eps = fd_step * nx / nv;
+  if (fd_motion && T0_ > 0) {
+    // A step of fd_step times the motion's size in the metric (omega_0 U, dU, (d / T0) T): the
+    // raw norm is the velocities' and would move the displacements by far more than their motion.
+    PetscReal d, a, b, t;
+    PetscCall(Unpack(x, U_, dU_, &t));
+    PetscCall(EquilibriumDistance(U_, dU_, &d));
+    PetscCall(Unpack(v, wU_, wdU_, &t));
+    PetscCall(VecNorm(wU_, NORM_2, &a));
+    PetscCall(VecNorm(wdU_, NORM_2, &b));
+    const PetscReal w = 2 * PETSC_PI / T0_;
+    const PetscReal s = std::sqrt(w * w * a * a + b * b + (d * t / T0_) * (d * t / T0_));
+    if (d > 0 && s > 0) eps = fd_step * d / s;
+  }
   PetscCall(VecWAXPY(xp_, eps, v, x));
   PetscCall(Residual(xp_, y));
   PetscCall(VecAXPY(y, -1.0, fbase_));
@@ -540,7 +557,9 @@ PetscErrorCode Shooting::SetUpNewton()
 {
   PetscFunctionBeginUser;
   jdense_  = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
-  jlinear_ = ExactJacobian() && !jdense_ && linear_pc && 2 * N_ <= linear_pc_max;
+  // Difference products (-shoot_exact_jacobian 0) take the linear preconditioner where exact ones
+  // would; below -shoot_jacobian_dense_max they keep plain GMRES on the small bordered system.
+  jlinear_ = ti_ && ti_->Dense() && 2 * N_ + 1 > jacobian_dense_max && linear_pc && 2 * N_ <= linear_pc_max;
   {
     // GMRES on tangent products (one period integration each): far from the cycle Newton's step
     // needs no 1e-6 linear solve, so the Krylov tolerance follows the residual's decrease
@@ -549,7 +568,7 @@ PetscErrorCode Shooting::SetUpNewton()
     PetscBool set = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, "shoot_", "-snes_ksp_ew", &set));
     if (!set) {
-      PetscCall(SNESKSPSetUseEW(snes_, (PetscBool)(ew && !jdense_ && ExactJacobian())));
+      PetscCall(SNESKSPSetUseEW(snes_, (PetscBool)(ew && !jdense_ && (ExactJacobian() || jlinear_))));
       // PETSc's default rtol_max 0.9 lets a step after a residual increase (status changes make
       // the period map non-smooth) stop after 2 GMRES iterations, and Newton then crawls: cap at 0.1.
       PetscCall(SNESKSPSetParametersEW(snes_, PETSC_DEFAULT, 0.1, 0.1, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));

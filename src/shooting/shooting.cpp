@@ -57,6 +57,10 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Shooting", &period, Range::NonNegative(), checks);
   SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
                     Range::Positive(), checks);
+  PetscCall(PetscOptionsBool("-fd_motion",
+                             "Finite-difference steps of the flow derivatives relative to the motion's size |(omega_0 (U0 - U_e), dU0)| "
+                             "(and the period's share) instead of ||Z0||",
+                             "Shooting", fd_motion, &fd_motion, nullptr));
   PetscCall(PetscOptionsBool("-exact_jacobian",
                              "Jacobian products from the exact step tangents along the stored flow (dense theta back end; "
                              "else finite differences of the flow)",

@@ -365,8 +365,23 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
   }
   // The period column is exact (one tangent integration of one column); the border is the anchor's.
   Eigen::MatrixXd    dT1;
-  Eigen::RowVectorXd dT = Eigen::RowVectorXd::Ones(1);
-  PetscCall(TangentFlow(x, Eigen::MatrixXd::Zero(n2, 1), dT, dT1));
+  if (ExactJacobian()) {
+    Eigen::RowVectorXd dT = Eigen::RowVectorXd::Ones(1);
+    PetscCall(TangentFlow(x, Eigen::MatrixXd::Zero(n2, 1), dT, dT1));
+  } else {
+    // Difference products: the period column by the same difference as the other products.
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(n2 + 1), out;
+    e[n2]             = 1.0;
+    Vec ev, jv;
+    PetscCall(VecDuplicate(x, &ev));
+    PetscCall(VecDuplicate(x, &jv));
+    PetscCall(FromNatural(e, ev));
+    PetscCall(JacobianProduct(x, ev, jv));
+    PetscCall(ToNatural(jv, out));
+    PetscCall(VecDestroy(&ev));
+    PetscCall(VecDestroy(&jv));
+    dT1 = out.head(n2);
+  }
   PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
   Eigen::VectorXd col(n2 + 1), row = Eigen::VectorXd::Zero(n2 + 1);
   col.head(n2) = dT1.col(0);

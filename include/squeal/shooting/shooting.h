@@ -8,8 +8,9 @@
 // with the anchor (Z_a, G_a = G(Z(Z_a, T))) reset to the current iterate at the start of every
 // Newton iteration (SNESSetUpdate), so the last row linearises to the talk's phase row of (6.2).
 // The Jacobian is a MatShell of matrix-free products (6.4): one period integration each, forward
-// differences with step -shoot_fd_step * ||Z0|| / ||v||, which include d Z / d T consistently;
-// the bordered system is solved by GMRES without preconditioner (-shoot_ksp_*). With
+// differences with step -shoot_fd_step * ||Z0|| / ||v|| (-shoot_fd_motion: relative to the motion's
+// size, EquilibriumDistance), which include d Z / d T consistently; the bordered system is solved
+// by GMRES (-shoot_ksp_*), preconditioned on the dense back end as the exact products are. With
 // -shoot_deflate_power p > 0, SNES solves m(Z0) (H, p) = 0 instead, m = (d / d_0)^-p + shift
 // (Farrell, Birkisson & Funke, SIAM J. Sci. Comput. 37 (2015) A2026), whose Jacobian is
 // m J + F grad m^T: the sliding equilibrium, where H = 0 for any T, is no longer a root. Newton stops
@@ -157,6 +158,8 @@ public:
   // steps: -shoot_steps, PETSC_DECIDE until SetUpFor chooses from the model (DefaultSteps).
   PetscInt  steps = PETSC_DECIDE;
   PetscReal eps1 = 1e-5, eps2 = 1e-5, fd_step = 1e-7, q_scale = 1.0;
+  // -shoot_fd_motion: difference steps relative to the motion's size (EquilibriumDistance), not ||Z0||.
+  PetscBool fd_motion = PETSC_FALSE;
   // SIGINT/SIGTERM raised from inside shooting (Newton and Krylov iterations, pre-periods, flows);
   // off where the caller polls between its own steps and keeps what it has (continuation).
   bool      interruptible = true;
