@@ -76,6 +76,7 @@ PetscErrorCode Pipeline::Reduce(bool *reduced)
   PetscCall(cb.SetKeepExpansion(expand_results && (expand < 0 ? (bool)model.mesh : expand == 1)));
   Model red(comm_);
   PetscCall(cb.Reduce(model, red));
+  reduction_top_hz = cb.Info().freq.empty() ? 0.0 : cb.Info().freq.back();
   PetscMPIInt wrank, rank;
   PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &wrank));
   PetscCallMPI(MPI_Comm_rank(comm_, &rank));

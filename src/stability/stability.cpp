@@ -46,6 +46,11 @@ PetscErrorCode StabilitySolver::SetFromOptions()
   SquealOptionsReal("-fmin", "Lower end of the band (Hz): unstable modes below it are listed but not reported", "StabilitySolver",
                     &fmin_, Range::NonNegative(), checks);
   PetscCall(PetscOptionsInt("-nev_max", "Largest nev the band growth may use", "StabilitySolver", nev_max_, &nev_max_, nullptr));
+  PetscCall(PetscOptionsReal("-guard_fmax",
+                             "Before the nonlinear analyses (energy, shooting, transient, steady, auto, torus, continuation), look for "
+                             "unstable modes above the band up to this frequency (Hz) too, since the time integration carries every mode "
+                             "of the model (-1: the top fixed-interface mode of a reduction made in this run, else off; 0: off)",
+                             "StabilitySolver::SolveUpTo", guard_fmax_, &guard_fmax_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCheck(nev_max_ >= 1, comm_, kErrInput, "option -%snev_max = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), nev_max_);
@@ -102,6 +107,18 @@ PetscErrorCode StabilitySolver::NormaliseMode(const Model &model, Mode &m) const
   PetscCall(VecAXPBYPCZ(tmp, a / s, b / s, 0.0, m.phi_re, m.phi_im));
   PetscCall(VecAXPBY(m.phi_im, -b / s, a / s, m.phi_re));
   PetscCall(VecCopy(tmp, m.phi_re));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilitySolver::SolveUpTo(const Model &model, const SlidingEquilibrium &eq, PetscReal fmax, StabilityResult &res)
+{
+  PetscFunctionBeginUser;
+  const PetscReal fmax0 = fmax_, fmin0 = fmin_;
+  const bool      modes0 = modes_;
+  fmax_ = fmax, fmin_ = 0, modes_ = false;
+  const PetscErrorCode ierr = Solve(model, eq, res);
+  fmax_ = fmax0, fmin_ = fmin0, modes_ = modes0;
+  PetscCall(ierr);
   PetscFunctionReturn(0);
 }
 

@@ -115,6 +115,7 @@ public:
   ShootingResult     cycle;
   SteadyStateResult  settled;
   TorusResult        torus_result;
+  PetscReal          reduction_top_hz = 0; // the highest fixed-interface mode a Reduce of this run kept (0: none)
 
 private:
   MPI_Comm comm_;

@@ -103,6 +103,11 @@ public:
   // under -stab_.
   PetscErrorCode SetFromOptions();
   PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, StabilityResult &res);
+  // The same eigensolve over the band (0, fmax] without the modes' vectors: the unstable modes
+  // above the band that the time integration carries (-stab_guard_fmax).
+  PetscErrorCode SolveUpTo(const Model &model, const SlidingEquilibrium &eq, PetscReal fmax, StabilityResult &res);
+  // -stab_guard_fmax (Hz): < 0 the top of a reduction made in this run, 0 off.
+  PetscReal      GuardFMax() const { return guard_fmax_; }
   PetscErrorCode View(const StabilityResult &res, PetscViewer viewer) const;
   PetscErrorCode ViewFromOptions(const StabilityResult &res) const;
   // One line: "complete up to X Hz (...)" or "complete: all ... eigenvalues", and whether the band
@@ -118,6 +123,7 @@ private:
   bool        modes_  = true;
   PetscReal   fmax_ = kDefaultBandHz, fmin_ = 0;
   PetscInt    nev_max_ = 1000;
+  PetscReal   guard_fmax_ = -1;
   PEPH        pep_;
 };
 
