@@ -364,7 +364,10 @@ PetscErrorCode H5Writer::WriteAttribute(const char *object, const char *name, co
 {
   PetscFunctionBeginUser;
   PetscCall(CheckOpen());
-  if (rank_ == 0) WriteAttr(object, name, H5T_NATIVE_DOUBLE, {(hsize_t)values.size()}, values.data());
+  // An empty list (no spectral bases yet in a steady state stopped early) is a zero-length
+  // attribute: H5Awrite refuses the null pointer an empty vector's data() may be.
+  static const PetscReal none = 0;
+  if (rank_ == 0) WriteAttr(object, name, H5T_NATIVE_DOUBLE, {(hsize_t)values.size()}, values.empty() ? &none : values.data());
   PetscCall(Sync());
   PetscFunctionReturn(0);
 }

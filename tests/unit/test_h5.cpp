@@ -75,3 +75,39 @@ TEST(H5Writer, ArraysAttributesAndVecsReadBack)
     H5Fclose(f);
   }
 }
+
+// An empty list attribute (a steady state interrupted before its spectrum has bases) is written as a
+// zero-length attribute, not an HDF5 error that loses the analysis' other results.
+TEST(H5Writer, AnEmptyListAttributeIsZeroLength)
+{
+  const std::string path = testing::TempDir() + "squeal_h5_empty_attr.h5";
+  PetscMPIInt       rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  {
+    io::H5Writer out;
+    ASSERT_EQ(out.Open(PETSC_COMM_WORLD, path.c_str()), 0);
+    ASSERT_EQ(out.WriteAttribute("/steady_state", "bases", std::vector<PetscReal>{}), 0);
+    ASSERT_EQ(out.WriteAttribute("/steady_state", "rms", 1.25), 0);
+    ASSERT_EQ(out.Close(), 0);
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (rank == 0) {
+    const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    const hid_t g = H5Oopen(f, "/steady_state", H5P_DEFAULT);
+    ASSERT_GE(g, 0);
+    const hid_t a = H5Aopen(g, "bases", H5P_DEFAULT);
+    ASSERT_GE(a, 0);
+    const hid_t s = H5Aget_space(a);
+    EXPECT_EQ(H5Sget_simple_extent_npoints(s), 0);
+    H5Sclose(s);
+    H5Aclose(a);
+    double      rms = 0;
+    const hid_t ar  = H5Aopen(g, "rms", H5P_DEFAULT);
+    ASSERT_GE(H5Aread(ar, H5T_NATIVE_DOUBLE, &rms), 0);
+    EXPECT_EQ(rms, 1.25);
+    H5Aclose(ar);
+    H5Oclose(g);
+    H5Fclose(f);
+  }
+}
