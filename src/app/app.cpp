@@ -227,11 +227,11 @@ PetscErrorCode GuardAboveBand(Pipeline &p, io::H5Writer &out)
   PetscCall(out.WriteAttribute("/stability", "guard_fmax", g));
   PetscCall(out.WriteAttribute("/stability", "guard_complete_hz", reached));
   PetscCall(out.WriteAttribute("/stability", "unstable_above_band", (PetscInt)f.size()));
+  p.above_band_f.clear(), p.above_band_sigma.clear();
+  for (size_t i : order) p.above_band_f.push_back(f[i]), p.above_band_sigma.push_back(sigma[i]);
   if (!f.empty()) {
-    std::vector<PetscReal> fs, ss;
-    for (size_t i : order) fs.push_back(f[i]), ss.push_back(sigma[i]);
-    PetscCall(out.WriteAttribute("/stability", "unstable_above_band_f", fs));
-    PetscCall(out.WriteAttribute("/stability", "unstable_above_band_sigma", ss));
+    PetscCall(out.WriteAttribute("/stability", "unstable_above_band_f", p.above_band_f));
+    PetscCall(out.WriteAttribute("/stability", "unstable_above_band_sigma", p.above_band_sigma));
   }
   PetscFunctionReturn(0);
 }
@@ -379,6 +379,13 @@ PetscErrorCode ShootOrSettle(Pipeline &p, io::H5Writer &out, const Stages &st)
   PetscCall(out.WriteAttribute("/route", "pre_periods_limit", route.pre_periods));
   PetscCall(out.WriteAttribute("/route", "pre_tol", p.shooting.pre_tol));
   PetscCall(out.WriteAttribute("/route", "newton_failed", (PetscInt)route.newton_failed));
+  {
+    // Modes above the band (the guard) growing faster than the mode the route started from: with
+    // -stab_guard_route they send a returned flow to the statistics.
+    const PetscReal sigma_b = p.estimate.mode >= 0 ? p.stability.modes[p.estimate.mode].sigma : kInf;
+    const PetscInt  faster  = (PetscInt)std::count_if(p.above_band_sigma.begin(), p.above_band_sigma.end(), [&](PetscReal s) { return s > sigma_b; });
+    PetscCall(out.WriteAttribute("/route", "faster_above_band", faster));
+  }
   if (route.shooting) {
     PetscCall(p.shooting.View(p.cycle, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(Checkpoint(comm, out, "shooting"));

@@ -234,6 +234,11 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
   Shooting::DefaultPrePeriods(model.Size(), &model_default, &model_tol);
   route.pre_periods    = given > 0 ? given : std::max(Route::kAutoPrePeriods, model_default);
   shooting.pre_periods = route.pre_periods;
+  // The most unstable mode above the band, when it grows faster than the one shooting starts from.
+  const PetscReal sigma_b = stability.modes[estimate.mode].sigma, f_b = stability.modes[estimate.mode].Frequency();
+  const size_t    n_faster = stab.GuardRoute() ? (size_t)std::count_if(above_band_sigma.begin(), above_band_sigma.end(),
+                                                                          [&](PetscReal s) { return s > sigma_b; })
+                                                 : 0;
   const PetscInt given_stagnation = shooting.pre_stagnation;
   if (given_stagnation == PETSC_DECIDE) shooting.pre_stagnation = Route::kAutoStagnation;
   shooting.after_pre_periods = [&](const Shooting::PrePeriodsOutcome &o, Vec U, Vec dU, bool *newton) -> PetscErrorCode {
@@ -260,6 +265,18 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
                     (double)o.distance, o.distance < shooting.pre_tol ? "<" : ">=", (double)shooting.pre_tol, o.periods, limit.c_str(),
                     o.measured_period > 0 ? "" : ", no period measured at the Poincare section");
     route.why = b;
+    if (o.returned && n_faster > 0) {
+      // The band's cycle would have to hold down a faster-growing mode: on the brakes measured
+      // (docs/fe-workflow.md) such flows "returned" only by a fluctuation, and Newton ran 37 min
+      // for nothing on the size-2 brake.
+      *newton = false, route.shooting = route.newton_ran = false;
+      std::snprintf(b, sizeof b,
+                    "statistical steady state: the flow returned (return distance %.2e after %" PetscInt_FMT " pre-period(s)), but %zu mode(s) "
+                    "above the band grow faster than the band's %.1f Hz (%.1f Hz at %.4g 1/s against %.4g): no cycle of it to shoot "
+                    "(-stab_guard_route 0 tries)",
+                    (double)o.distance, o.periods, n_faster, (double)f_b, (double)above_band_f[0], (double)above_band_sigma[0], (double)sigma_b);
+      route.why = b;
+    }
     PetscCall(PetscPrintf(comm_, "route: %s\n", route.why.c_str()));
     PetscFunctionReturn(0);
   };

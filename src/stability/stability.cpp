@@ -51,6 +51,10 @@ PetscErrorCode StabilitySolver::SetFromOptions()
                              "unstable modes above the band up to this frequency (Hz) too, since the time integration carries every mode "
                              "of the model (-1: the top fixed-interface mode of a reduction made in this run, else off; 0: off)",
                              "StabilitySolver::SolveUpTo", guard_fmax_, &guard_fmax_, nullptr));
+  PetscCall(PetscOptionsBool("-guard_route",
+                             "-analyses auto: when a mode above the band (-stab_guard_fmax) grows faster than the band's mode, the "
+                             "statistical steady state from the pre-periods' end, without Newton on the band's cycle",
+                             "StabilitySolver::GuardRoute", guard_route_, &guard_route_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCheck(nev_max_ >= 1, comm_, kErrInput, "option -%snev_max = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), nev_max_);

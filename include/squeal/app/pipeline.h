@@ -116,6 +116,8 @@ public:
   SteadyStateResult  settled;
   TorusResult        torus_result;
   PetscReal          reduction_top_hz = 0; // the highest fixed-interface mode a Reduce of this run kept (0: none)
+  // The unstable modes above the band up to -stab_guard_fmax, most unstable first (the program's guard).
+  std::vector<PetscReal> above_band_f, above_band_sigma;
 
 private:
   MPI_Comm comm_;

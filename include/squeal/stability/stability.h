@@ -108,6 +108,9 @@ public:
   PetscErrorCode SolveUpTo(const Model &model, const SlidingEquilibrium &eq, PetscReal fmax, StabilityResult &res);
   // -stab_guard_fmax (Hz): < 0 the top of a reduction made in this run, 0 off.
   PetscReal      GuardFMax() const { return guard_fmax_; }
+  // -stab_guard_route: -analyses auto takes the statistical steady state without shooting when a
+  // mode above the band grows faster than the band's.
+  bool           GuardRoute() const { return guard_route_; }
   PetscErrorCode View(const StabilityResult &res, PetscViewer viewer) const;
   PetscErrorCode ViewFromOptions(const StabilityResult &res) const;
   // One line: "complete up to X Hz (...)" or "complete: all ... eigenvalues", and whether the band
@@ -124,6 +127,7 @@ private:
   PetscReal   fmax_ = kDefaultBandHz, fmin_ = 0;
   PetscInt    nev_max_ = 1000;
   PetscReal   guard_fmax_ = -1;
+  PetscBool   guard_route_ = PETSC_TRUE;
   PEPH        pep_;
 };
 
