@@ -379,13 +379,7 @@ PetscErrorCode ShootOrSettle(Pipeline &p, io::H5Writer &out, const Stages &st)
   PetscCall(out.WriteAttribute("/route", "pre_periods_limit", route.pre_periods));
   PetscCall(out.WriteAttribute("/route", "pre_tol", p.shooting.pre_tol));
   PetscCall(out.WriteAttribute("/route", "newton_failed", (PetscInt)route.newton_failed));
-  {
-    // Modes above the band (the guard) growing faster than the mode the route started from: with
-    // -stab_guard_route they send a returned flow to the statistics.
-    const PetscReal sigma_b = p.estimate.mode >= 0 ? p.stability.modes[p.estimate.mode].sigma : kInf;
-    const PetscInt  faster  = (PetscInt)std::count_if(p.above_band_sigma.begin(), p.above_band_sigma.end(), [&](PetscReal s) { return s > sigma_b; });
-    PetscCall(out.WriteAttribute("/route", "faster_above_band", faster));
-  }
+  PetscCall(out.WriteAttribute("/route", "faster_above_band", route.faster_above_band));
   if (route.shooting) {
     PetscCall(p.shooting.View(p.cycle, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(Checkpoint(comm, out, "shooting"));

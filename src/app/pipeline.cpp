@@ -236,9 +236,8 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
   shooting.pre_periods = route.pre_periods;
   // The most unstable mode above the band, when it grows faster than the one shooting starts from.
   const PetscReal sigma_b = stability.modes[estimate.mode].sigma, f_b = stability.modes[estimate.mode].Frequency();
-  const size_t    n_faster = stab.GuardRoute() ? (size_t)std::count_if(above_band_sigma.begin(), above_band_sigma.end(),
-                                                                          [&](PetscReal s) { return s > sigma_b; })
-                                                 : 0;
+  route.faster_above_band = (PetscInt)std::count_if(above_band_sigma.begin(), above_band_sigma.end(), [&](PetscReal s) { return s > sigma_b; });
+  const PetscInt n_faster = stab.GuardRoute() ? route.faster_above_band : 0;
   const PetscInt given_stagnation = shooting.pre_stagnation;
   if (given_stagnation == PETSC_DECIDE) shooting.pre_stagnation = Route::kAutoStagnation;
   shooting.after_pre_periods = [&](const Shooting::PrePeriodsOutcome &o, Vec U, Vec dU, bool *newton) -> PetscErrorCode {
@@ -271,7 +270,7 @@ PetscErrorCode Pipeline::ShootOrSettle(Route &route)
       // for nothing on the size-2 brake.
       *newton = false, route.shooting = route.newton_ran = false;
       std::snprintf(b, sizeof b,
-                    "statistical steady state: the flow returned (return distance %.2e after %" PetscInt_FMT " pre-period(s)), but %zu mode(s) "
+                    "statistical steady state: the flow returned (return distance %.2e after %" PetscInt_FMT " pre-period(s)), but %" PetscInt_FMT " mode(s) "
                     "above the band grow faster than the band's %.1f Hz (%.1f Hz at %.4g 1/s against %.4g): no cycle of it to shoot "
                     "(-stab_guard_route 0 tries)",
                     (double)o.distance, o.periods, n_faster, (double)f_b, (double)above_band_f[0], (double)above_band_sigma[0], (double)sigma_b);

@@ -57,6 +57,8 @@ PetscErrorCode StabilitySolver::SetFromOptions()
                              "StabilitySolver::GuardRoute", guard_route_, &guard_route_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  PetscCheck(guard_fmax_ == -1 || guard_fmax_ >= 0, comm_, kErrInput,
+             "option -%sguard_fmax = %g: expected a frequency >= 0 (0: off) or -1 (the reduction's top mode)", prefix_.c_str(), (double)guard_fmax_);
   PetscCheck(nev_max_ >= 1, comm_, kErrInput, "option -%snev_max = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(), nev_max_);
   PetscCheck(fmax_ == 0 || fmin_ < fmax_, comm_, kErrInput, "options -%sfmin = %g, -%sfmax = %g: expected fmin < fmax", prefix_.c_str(),
              (double)fmin_, prefix_.c_str(), (double)fmax_);

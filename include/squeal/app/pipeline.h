@@ -86,6 +86,7 @@ public:
     PetscInt                    pre_periods = 0;  // the limit they ran with
     std::vector<PetscReal>      U, dU;            // their end state, all N values on every rank (empty: none)
     std::string                 why;              // the line, without "route: "
+    PetscInt                    faster_above_band = 0; // modes above the band (the guard's) growing faster than the mode shot
   };
   PetscErrorCode ShootOrSettle(Route &route);
   // The statistical steady state from (U, dU) (empty: the transient's start from the mode).
