@@ -305,49 +305,86 @@ PetscErrorCode ReadCalculixDeck(MPI_Comm comm, const char *path, FeMesh &mesh, P
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ReadCalculixDofMap(MPI_Comm comm, const char *path, FeMesh &mesh)
+namespace {
+
+// One line of a .dof file, "node.direction", read as two integers around the dot (a real would
+// turn 7.10 into 7.1). False on anything else.
+bool ParseDofLine(const std::string &t, long long *node, long long *dir)
 {
-  std::ifstream  in;
-  std::string    line;
-  long long      lineno = 0;
-  PetscInt       row    = 0;
+  const size_t dot = t.find('.');
+  if (dot == std::string::npos) return false;
+  const std::string a = t.substr(0, dot), b = t.substr(dot + 1);
+  const char       *p = a.c_str(), *q = b.c_str();
+  return ReadNumber(p, node) && AtEnd(p) && ReadNumber(q, dir) && AtEnd(q) && *dir >= 1 && *dir <= 3;
+}
+
+// Calls visit(lineno, node index in the mesh, direction 0-2) for each DOF of the file in order.
+template <class Visit>
+PetscErrorCode ForEachDof(MPI_Comm comm, const char *path, const FeMesh &mesh, const char *what, Visit visit)
+{
+  std::ifstream                  in;
+  std::string                    line;
+  long long                      lineno = 0;
   std::unordered_map<long, long> index;
   PetscFunctionBeginUser;
-  PetscCall(detail::CheckReadable(comm, path, "CalculiX DOF map"));
+  PetscCall(detail::CheckReadable(comm, path, what));
   for (size_t k = 0; k < mesh.node_ids.size(); ++k) index[mesh.node_ids[k]] = (long)k;
-  mesh.dof.assign(mesh.x.size(), {-1, -1, -1});
   PetscCallCXX(in.open(path));
   while (std::getline(in, line)) {
     ++lineno;
-    if (Trim(line).empty()) continue;
-    // "node.direction": read as two integers around the dot (a real would turn 7.10 into 7.1).
-    const std::string t   = Trim(line);
-    const size_t      dot = t.find('.');
-    long long         node = -1, dir = -1;
-    bool              ok   = dot != std::string::npos;
-    if (ok) {
-      const std::string a = t.substr(0, dot), b = t.substr(dot + 1);
-      const char       *p = a.c_str(), *q = b.c_str();
-      ok = ReadNumber(p, &node) && AtEnd(p) && ReadNumber(q, &dir) && AtEnd(q);
-    }
-    PetscCheck(ok && dir >= 1 && dir <= 3, comm, kErrInput,
-               "CalculiX DOF map '%s', line %lld: expected 'node.direction' with direction 1, 2 or 3, found '%s' "
+    const std::string t = Trim(line);
+    if (t.empty()) continue;
+    long long node = -1, dir = -1;
+    PetscCheck(ParseDofLine(t, &node, &dir), comm, kErrInput,
+               "%s '%s', line %lld: expected 'node.direction' with direction 1, 2 or 3, found '%s' "
                "(is this the .dof file that ccx writes with *FREQUENCY, SOLVER=MATRIXSTORAGE?)",
-               path, lineno, t.c_str());
+               what, path, lineno, t.c_str());
     auto it = index.find((long)node);
     PetscCheck(it != index.end(), comm, kErrInput,
-               "CalculiX DOF map '%s', line %lld: node %lld is not a node of the deck (deck and matrices of different jobs?)",
-               path, lineno, node);
-    PetscCheck(mesh.dof[it->second][dir - 1] < 0, comm, kErrInput, "CalculiX DOF map '%s', line %lld: DOF %lld.%lld listed twice",
-               path, lineno, node, dir);
-    mesh.dof[it->second][dir - 1] = row++;
+               "%s '%s', line %lld: node %lld is not a node of the deck (deck and matrices of different models?)", what, path, lineno,
+               node);
+    PetscCall(visit(lineno, (size_t)it->second, (int)(dir - 1)));
   }
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode ReadCalculixDofMap(MPI_Comm comm, const char *path, FeMesh &mesh)
+{
+  PetscInt row = 0;
+  PetscFunctionBeginUser;
+  mesh.dof.assign(mesh.x.size(), {-1, -1, -1});
+  PetscCall(ForEachDof(comm, path, mesh, "CalculiX DOF map", [&](long long lineno, size_t k, int d) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    PetscCheck(mesh.dof[k][d] < 0, comm, kErrInput, "CalculiX DOF map '%s', line %lld: DOF %ld.%d listed twice", path, lineno,
+               mesh.node_ids[k], d + 1);
+    mesh.dof[k][d] = row++;
+    PetscFunctionReturn(0);
+  }));
   PetscCheck(row > 0, comm, kErrInput, "CalculiX DOF map '%s' is empty", path);
   mesh.full_size = row;
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode MatLoadCalculix(MPI_Comm comm, const char *path, PetscInt N, Mat *A)
+PetscErrorCode ReadCalculixPartDofMap(MPI_Comm comm, const char *path, const FeMesh &mesh, std::vector<PetscInt> &rows)
+{
+  std::vector<char> seen(3 * mesh.x.size(), 0);
+  PetscFunctionBeginUser;
+  rows.clear();
+  PetscCall(ForEachDof(comm, path, mesh, "CalculiX DOF map of a part", [&](long long lineno, size_t k, int d) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    PetscCheck(!seen[3 * k + d], comm, kErrInput, "CalculiX DOF map of a part '%s', line %lld: DOF %ld.%d listed twice", path, lineno,
+               mesh.node_ids[k], d + 1);
+    seen[3 * k + d] = 1;
+    PetscCallCXX(rows.push_back(mesh.dof[k][d]));
+    PetscFunctionReturn(0);
+  }));
+  PetscCheck(!rows.empty(), comm, kErrInput, "CalculiX DOF map of a part '%s' is empty", path);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode MatLoadCalculix(MPI_Comm comm, const char *path, PetscInt N, Mat *A, const std::vector<PetscInt> *rows)
 {
   std::ifstream              in;
   std::string                line;
@@ -369,16 +406,21 @@ PetscErrorCode MatLoadCalculix(MPI_Comm comm, const char *path, PetscInt N, Mat 
                "*FREQUENCY, SOLVER=MATRIXSTORAGE)",
                path, lineno);
     PetscCheck(std::isfinite(v), comm, kErrInput, "CalculiX matrix file '%s', line %lld: value is NaN or infinite", path, lineno);
-    PetscCheck(i >= 1 && j >= 1 && i <= N && j <= N, comm, kErrInput,
+    const PetscInt n_file = rows ? (PetscInt)rows->size() : N;
+    PetscCheck(i >= 1 && j >= 1 && i <= n_file && j <= n_file, comm, kErrInput,
                "CalculiX matrix file '%s', line %lld: entry (%lld, %lld) outside the %" PetscInt_FMT
                " DOFs of the .dof map (files of different jobs?)",
-               path, lineno, i, j, N);
+               path, lineno, i, j, n_file);
     PetscCheck(i <= j, comm, kErrInput,
                "CalculiX matrix file '%s', line %lld: entry (%lld, %lld) below the diagonal; CalculiX writes the upper "
                "triangle only",
                path, lineno, i, j);
     ++found;
-    const PetscInt r = (PetscInt)(i - 1), c = (PetscInt)(j - 1);
+    PetscInt r = (PetscInt)(i - 1), c = (PetscInt)(j - 1);
+    if (rows) {
+      r = (*rows)[r], c = (*rows)[c];
+      if (r < 0 || c < 0) continue; // a DOF the model constrains
+    }
     if (r >= rstart && r < rend) PetscCallCXX(owned.push_back({r, c, v}));
     if (r != c && c >= rstart && c < rend) PetscCallCXX(owned.push_back({c, r, v}));
   }

@@ -427,10 +427,30 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
   const PetscInt N = mesh->full_size;
   PetscCall(io::MatLoadCalculix(comm, sti.c_str(), N, model.K.out()));
   PetscCall(io::MatLoadCalculix(comm, mas.c_str(), N, model.M.out()));
-  if (s.ray_a > 0 || s.ray_b > 0) {
+  PetscCheck(s.part_jobs.size() == s.part_b.size(), comm, kErrInput,
+             "-model_ccx_damping_parts names %zu job(s) but -model_ccx_damping_b gives %zu factor(s): give one factor per part",
+             s.part_jobs.size(), s.part_b.size());
+  for (size_t i = 0; i < s.part_b.size(); ++i)
+    PetscCheck(std::isfinite(s.part_b[i]) && s.part_b[i] >= 0, comm, kErrInput,
+               "-model_ccx_damping_b: factor %g of part '%s': expected finite and >= 0", (double)s.part_b[i], s.part_jobs[i].c_str());
+  if (s.ray_a > 0 || s.ray_b > 0 || !s.part_jobs.empty()) {
     PetscCall(MatDuplicate(model.K, MAT_COPY_VALUES, model.C.out()));
     PetscCall(MatScale(model.C, s.ray_b));
     PetscCall(MatAXPY(model.C, s.ray_a, model.M, DIFFERENT_NONZERO_PATTERN));
+    for (size_t i = 0; i < s.part_jobs.size(); ++i) {
+      // The part's own job: its .dof numbers only its DOFs, so its rows are mapped by node and
+      // direction onto the model's.
+      // A relative part is in the model's folder, as the deck's *INCLUDE files are.
+      std::string  part = s.part_jobs[i];
+      const size_t slash = s.job.find_last_of('/');
+      if (!part.empty() && part[0] != '/' && slash != std::string::npos) part = s.job.substr(0, slash + 1) + part;
+      const std::string      pdof = part + ".dof", psti = part + ".sti";
+      std::vector<PetscInt> rows;
+      MatH                   Kp;
+      PetscCall(io::ReadCalculixPartDofMap(comm, pdof.c_str(), *mesh, rows));
+      PetscCall(io::MatLoadCalculix(comm, psti.c_str(), N, Kp.out(), &rows));
+      PetscCall(MatAXPY(model.C, s.part_b[i], Kp, DIFFERENT_NONZERO_PATTERN));
+    }
   } else model.C.reset();
 
   // Preload: a pressure on a face and/or a load vector in the .dof numbering.
@@ -565,6 +585,24 @@ PetscErrorCode ModelCreateFromOptions(MPI_Comm comm, Model &model, std::string *
                       &ccx.ray_a, Range::NonNegative(), checks);
     SquealOptionsReal("-ccx_rayleigh_b", "CalculiX model: Rayleigh stiffness factor b (s)", "BuildCalculix", &ccx.ray_b,
                       Range::NonNegative(), checks);
+    {
+      char     *jobs[16];
+      PetscReal bs[16];
+      PetscInt  nj = 16, nb = 16;
+      PetscBool sj = PETSC_FALSE, sb = PETSC_FALSE;
+      PetscCall(PetscOptionsStringArray("-ccx_damping_parts", "CalculiX model: jobs PART,... each made of some of the model's elements "
+                                        "(PART.sti, PART.dof); C += b_i K_PART for each", "BuildCalculix", jobs, &nj, &sj));
+      PetscCall(PetscOptionsRealArray("-ccx_damping_b", "CalculiX model: stiffness factor b_i (s) of each -model_ccx_damping_parts job",
+                                      "BuildCalculix", bs, &nb, &sb));
+      if (sj) {
+        ccx.part_jobs.clear();
+        for (PetscInt i = 0; i < nj; ++i) {
+          ccx.part_jobs.push_back(jobs[i]);
+          PetscCall(PetscFree(jobs[i]));
+        }
+      }
+      if (sb) ccx.part_b.assign(bs, bs + nb);
+    }
     SquealOptionsReal("-ccx_pressure", "CalculiX model: preload pressure (Pa) on the faces of -model_ccx_pressure_set, pushing into the body",
                       "BuildCalculix", &ccx.pressure, Range::Any(), checks);
     PetscCall(PetscOptionsString("-ccx_pressure_set", "CalculiX model: node set whose faces carry -model_ccx_pressure", "BuildCalculix",

@@ -253,3 +253,75 @@ TEST(Calculix, BadGeometryAndFilesAreRefusedByName)
     EXPECT_EQ(A, nullptr);
   }
 }
+
+// Damping of parts: the plate's and the pad's own jobs (tb_disc, tb_pad: their cells alone, no
+// springs, no boundary, each with its own .dof) mapped by node and direction onto the model.
+// Their stiffnesses sum to the model's less its springs, so with both factors 1, K - C is the
+// springs alone: 2e6 N/m on the z DOF of each of the pad's 9 back-face nodes, zero elsewhere.
+TEST(Calculix, DampedPartsMapOntoTheModelByNodeAndDirection)
+{
+  Model             model;
+  CalculixModelSpec s = TwoBlocks();
+  s.part_jobs         = {"tb_disc", "tb_pad"}; // relative: in the folder of the model's job
+  s.part_b            = {1.0, 1.0};
+  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, s, model), 0);
+  ASSERT_TRUE(model.C);
+  const Eigen::MatrixXd K = test::ToDense(model.K), C = test::ToDense(model.C);
+  const Eigen::MatrixXd D = K - C;
+  std::vector<PetscInt> springs;
+  for (long n : model.mesh->node_sets.at("PAD_BACK")) springs.push_back(model.mesh->dof[n][2]);
+  ASSERT_EQ(springs.size(), 9u);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(K.rows(), K.cols());
+  for (PetscInt r : springs) {
+    ASSERT_GE(r, 0);
+    S(r, r) = 2.0e6;
+  }
+  EXPECT_LT((D - S).cwiseAbs().maxCoeff(), 1e-12 * K.cwiseAbs().maxCoeff());
+
+  // The pad alone with its own factor, and Rayleigh on top: C = a M + b K + b_pad K_pad, whose
+  // pad part vanishes on the rows of the plate's nodes.
+  Model             m2;
+  CalculixModelSpec s2 = TwoBlocks();
+  s2.ray_a             = 3.0;
+  s2.ray_b             = 1e-6;
+  s2.part_jobs         = {"tb_pad"};
+  s2.part_b            = {2e-5};
+  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, s2, m2), 0);
+  Model             m3;
+  CalculixModelSpec s3 = TwoBlocks();
+  s3.part_jobs         = {"tb_pad"};
+  s3.part_b            = {1.0};
+  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, s3, m3), 0);
+  const Eigen::MatrixXd Kp = test::ToDense(m3.C), M = test::ToDense(model.M);
+  EXPECT_LT((test::ToDense(m2.C) - (3.0 * M + 1e-6 * K + 2e-5 * Kp)).cwiseAbs().maxCoeff(), 1e-12 * (1e-6 * K.cwiseAbs().maxCoeff()));
+  for (size_t n = 0; n < model.mesh->node_ids.size(); ++n) {
+    if (model.mesh->node_ids[n] > 1000) continue; // the pad's nodes are numbered from 1001
+    for (PetscInt r : model.mesh->dof[n]) {
+      if (r >= 0) EXPECT_EQ(Kp.row(r).cwiseAbs().maxCoeff(), 0.0) << "plate row " << r;
+    }
+  }
+  EXPECT_GT(Kp.cwiseAbs().maxCoeff(), 1e6);
+}
+
+TEST(Calculix, DampedPartsRefusedByName)
+{
+  auto build = [](std::vector<std::string> jobs, std::vector<PetscReal> b) {
+    Model             model;
+    CalculixModelSpec s = TwoBlocks();
+    s.part_jobs         = std::move(jobs);
+    s.part_b            = std::move(b);
+    return Quiet([&] { return BuildCalculix(PETSC_COMM_WORLD, s, model); });
+  };
+  EXPECT_NE(build({"tb_pad"}, {}), 0);                 // no factor
+  EXPECT_NE(build({"tb_pad"}, {-1.0}), 0);             // negative
+  EXPECT_NE(build({"tb_pad"}, {NAN}), 0);              // NaN
+  EXPECT_NE(build({"no_such_part"}, {1.0}), 0);        // missing files
+  EXPECT_EQ(build({kData + "tb_pad"}, {1.0}), 0);      // an absolute path is taken as it is
+  // A part of another model: a node the deck does not have.
+  const std::string stem = ::testing::TempDir() + "squeal_bad_part";
+  std::ofstream(stem + ".dof") << "1001.1\n99999.3\n";
+  std::ofstream(stem + ".sti") << "1 1 1.0\n1 2 0.5\n2 2 1.0\n";
+  EXPECT_NE(build({stem}, {1.0}), 0);
+  std::ofstream(stem + ".dof") << "1001.1\n1001.2\n";
+  EXPECT_EQ(build({stem}, {1.0}), 0); // the same files with nodes of the deck
+}

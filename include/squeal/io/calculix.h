@@ -14,6 +14,8 @@
 
 #include <petscmat.h>
 
+#include <vector>
+
 namespace squeal::io {
 
 // The mesh of an Abaqus-syntax deck (job.inp): *NODE, *ELEMENT (C3D4, C3D6, C3D8, C3D8R, C3D8I,
@@ -29,7 +31,14 @@ PetscErrorCode ReadCalculixDeck(MPI_Comm comm, const char *path, FeMesh &mesh, P
 PetscErrorCode ReadCalculixDofMap(MPI_Comm comm, const char *path, FeMesh &mesh);
 
 // job.sti or job.mas as an N x N symmetric MATAIJ (both triangles stored), N the number of rows
-// of job.dof.
-PetscErrorCode MatLoadCalculix(MPI_Comm comm, const char *path, PetscInt N, Mat *A);
+// of job.dof. With `rows`, the file is a part's (its own .dof numbering, rows->size() DOFs) and
+// row i of the file goes to row (*rows)[i] of the N x N matrix; rows mapped to -1 (DOFs the
+// model constrains) are dropped.
+PetscErrorCode MatLoadCalculix(MPI_Comm comm, const char *path, PetscInt N, Mat *A, const std::vector<PetscInt> *rows = nullptr);
+
+// The .dof map of a part of the model (a job made of some of its elements, e.g. the lining
+// alone, to damp it on its own): rows[i] is the model's row of the part's DOF i, or -1 where the
+// model has none (a DOF the model constrains). A node missing from the model's mesh is an error.
+PetscErrorCode ReadCalculixPartDofMap(MPI_Comm comm, const char *path, const FeMesh &mesh, std::vector<PetscInt> &rows);
 
 } // namespace squeal::io

@@ -55,6 +55,10 @@ PetscErrorCode BuildFromFiles(MPI_Comm comm, const FileModelSpec &s, Model &mode
 struct CalculixModelSpec {
   std::string job;                                  // STEM of STEM.inp, .sti, .mas, .dof
   PetscReal   ray_a = 0, ray_b = 0;                 // Rayleigh factors
+  // Damping of parts: C += b_i K_i, K_i the stiffness of a CalculiX job made of some of the
+  // model's elements (PART.sti with its own PART.dof), e.g. a lining with its own loss factor.
+  std::vector<std::string> part_jobs;
+  std::vector<PetscReal>   part_b;
   PetscReal   pressure = 0;                         // Pa, on the faces of pressure_set
   std::string pressure_set = "PAD_BACK";
   std::string load;                                 // optional load vector file

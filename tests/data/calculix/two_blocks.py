@@ -3,10 +3,12 @@
 its face x = 0) and a lining block (the "pad") resting on it, with conforming meshes on the
 contact face z = 0, the pad's back face held in x and y and carried by normal springs.
 
-    two_blocks.py OUT.inp [--frequency N] [--shift DX]
+    two_blocks.py OUT.inp [--frequency N] [--shift DX] [--part DISC|PAD]
 
 --frequency N writes a *FREQUENCY step for N eigenvalues instead of the matrix output (the
 reference frequencies); --shift moves the pad's mesh in x by DX (non-conforming faces).
+--part writes that body alone (its cells, no springs, no boundary): its stiffness for
+-model_ccx_damping_parts (tb_disc.*, tb_pad.*).
 Node sets: PAD_FACE, DISC_FACE, PAD_BACK, DISC_CLAMP.
 """
 import argparse
@@ -16,6 +18,7 @@ ap.add_argument("out")
 ap.add_argument("--frequency", type=int, default=0)
 ap.add_argument("--shift", type=float, default=0.0)
 ap.add_argument("--pad-nx", type=int, default=2)
+ap.add_argument("--part", choices=("DISC", "PAD"))
 a = ap.parse_args()
 
 L = ["*HEADING", "squeal test: plate + pad, conforming contact face"]
@@ -49,10 +52,19 @@ sets["PAD_BACK"] = [n for (i, j, k), n in pids.items() if k == 2]
 
 L.append("*NODE, NSET=NALL")
 L += [f"{n}, {x:.12g}, {y:.12g}, {z:.12g}" for n, x, y, z in nodes]
-L.append("*ELEMENT, TYPE=C3D8, ELSET=DISC")
-L += [f"{e + 1}, " + ", ".join(map(str, c)) for e, c in enumerate(dcells)]
-L.append("*ELEMENT, TYPE=C3D8, ELSET=PAD")
-L += [f"{e + 101}, " + ", ".join(map(str, c)) for e, c in enumerate(pcells)]
+if a.part in (None, "DISC"):
+    L.append("*ELEMENT, TYPE=C3D8, ELSET=DISC")
+    L += [f"{e + 1}, " + ", ".join(map(str, c)) for e, c in enumerate(dcells)]
+if a.part in (None, "PAD"):
+    L.append("*ELEMENT, TYPE=C3D8, ELSET=PAD")
+    L += [f"{e + 101}, " + ", ".join(map(str, c)) for e, c in enumerate(pcells)]
+if a.part:
+    L += ["*MATERIAL, NAME=STEEL", "*ELASTIC", "210e9, 0.3", "*DENSITY", "7850.",
+          "*MATERIAL, NAME=LINING", "*ELASTIC", "2.0e9, 0.25", "*DENSITY", "2500.",
+          f"*SOLID SECTION, ELSET={a.part}, MATERIAL={'STEEL' if a.part == 'DISC' else 'LINING'}",
+          "*STEP", "*FREQUENCY, SOLVER=MATRIXSTORAGE", "*END STEP"]
+    open(a.out, "w").write("\n".join(L) + "\n")
+    raise SystemExit(0)
 # Normal springs under the pad's back face: one SPRING1 element per node, along z.
 L.append("*ELEMENT, TYPE=SPRING1, ELSET=SUPPORT")
 L += [f"{e + 201}, {n}" for e, n in enumerate(sets["PAD_BACK"])]
