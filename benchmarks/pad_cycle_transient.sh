@@ -13,7 +13,7 @@
 # Reduced cycle against the FULL model (issue 18 item 4): give the reduction in SHOOT_ARGS only
 # (it keeps its expansion by default for a model with a mesh; -reduce_expand 1 otherwise) and add --expanded to
 # CHECK_ARGS: the transient then runs on the unreduced model, and the check on its DOFs, e.g.
-#   ARGS="-model_ccx_job build/brake-0.5/brake -contact_mu 0.05 -contact_v 1" \
+#   ARGS="-model_ccx_job build/brake-0.5/brake -contact_mu 0.15 -contact_v 1" \
 #   SHOOT_ARGS="-analyses stability,energy,shooting -reduce_type craig_bampton -reduce_fmax 60000" CHECK_ARGS="--expanded" \
 #   bash benchmarks/pad_cycle_transient.sh build ../brake/brake.yaml
 # The 31119-DOF pad takes ~14 min for the scene and ~45 min of one core for 320 periods (63 270 steps).

@@ -12,8 +12,10 @@ by springs (the caliper) and pushed by a pressure (the piston; the scene's -mode
 --size S multiplies the numbers of divisions (S = 1: about 16 000 DOFs and 176 contact pairs).
 
 Writes OUTDIR/JOB_mesh.inp (gmsh's Abaqus export: nodes, C3D8 cells, node sets of the physical
-groups), OUTDIR/JOB.inp (the CalculiX deck: materials, springs, clamp, the MATRIXSTORAGE step)
-and, unless --no-ccx, runs `ccx -i JOB` there, which writes JOB.sti, JOB.mas, JOB.dof.
+groups), OUTDIR/JOB.inp (the CalculiX deck: materials, springs, clamp, the MATRIXSTORAGE step),
+OUTDIR/JOB_lining.inp and JOB_lining_mesh.inp (the lining alone, whose stiffness the scene damps
+on its own: -model_ccx_damping_parts) and, unless --no-ccx, runs `ccx -i JOB` and
+`ccx -i JOB_lining` there, which write JOB.sti, JOB.mas, JOB.dof and JOB_lining.sti, .mas, .dof.
 Node sets: PAD_FACE, DISC_FACE, PAD_BACK, DISC_CLAMP.
 """
 import argparse
@@ -164,6 +166,30 @@ for line in open(mesh_file):
         kept.append(line)
 open(mesh_file, "w").writelines(kept)
 
+# The lining on its own (its nodes and cells, no boundary): ccx writes its stiffness K_L in
+# JOB_lining.sti with its own JOB_lining.dof, which the scene adds to the damping as b_L K_L
+# (-model_ccx_damping_parts), the lining's loss factor apart from the steel's.
+lining_ids, in_lining = set(), False
+for line in kept:
+    if line.startswith("*"):
+        in_lining = line.upper().replace(" ", "").strip() == "*ELSET,ELSET=LINING"
+    elif in_lining:
+        lining_ids.update(int(t) for t in line.replace(",", " ").split())
+lining_mesh, block = [], None
+for line in kept:
+    if line.startswith("*"):
+        head = line.upper().replace(" ", "")
+        block = "node" if head.startswith("*NODE") and not head.startswith("*NODE,NSET") else \
+                "cell" if head.startswith("*ELEMENT") else None
+        if block:
+            lining_mesh.append(line)
+    elif block == "node" or (block == "cell" and int(line.split(",")[0]) in lining_ids):
+        lining_mesh.append(line)
+ids = sorted(lining_ids)
+lining_mesh.append("*ELSET, ELSET=LINING\n")
+lining_mesh += [", ".join(map(str, ids[i:i + 10])) + "\n" for i in range(0, len(ids), 10)]
+open(os.path.join(a.outdir, a.job + "_lining_mesh.inp"), "w").writelines(lining_mesh)
+
 # The caliper's springs: the back face's nodes, each with its share of the face area.
 back_nodes, back_xyz = gmsh.model.mesh.getNodesForPhysicalGroup(2, groups["PAD_BACK"])
 gmsh.finalize()
@@ -171,6 +197,16 @@ n_back = len(back_nodes)
 area_back = 0.5 * (2 * P_HALF) * (P_OUT ** 2 - P_IN ** 2)
 k_node = [k * area_back / n_back for k in (a.support_kt, a.support_kt, a.support_kn)]
 
+LINING = """*MATERIAL, NAME=LINING
+*ELASTIC
+1.5e9, 0.25
+*DENSITY
+2200.
+"""
+STEP = """*STEP
+*FREQUENCY, SOLVER=MATRIXSTORAGE
+*END STEP
+"""
 deck = os.path.join(a.outdir, a.job + ".inp")
 with open(deck, "w") as f:
     f.write(f"""** squeal brake example: written by examples/brake/make_brake.py --size {a.size}
@@ -183,36 +219,34 @@ with open(deck, "w") as f:
             f.write(f"*ELEMENT, TYPE=SPRING1, ELSET={es}\n")
         for i, n in enumerate(back_nodes):
             f.write(f"{first + d * n_back + i}, {int(n)}\n")
-    f.write("""*MATERIAL, NAME=STEEL
+    f.write(f"""*MATERIAL, NAME=STEEL
 *ELASTIC
 210e9, 0.3
 *DENSITY
 7850.
-*MATERIAL, NAME=LINING
-*ELASTIC
-1.5e9, 0.25
-*DENSITY
-2200.
-*SOLID SECTION, ELSET=DISC, MATERIAL=STEEL
+{LINING}*SOLID SECTION, ELSET=DISC, MATERIAL=STEEL
 *SOLID SECTION, ELSET=BACKPLATE, MATERIAL=STEEL
 *SOLID SECTION, ELSET=LINING, MATERIAL=LINING
 """)
     for d, es in enumerate(("CALIPER_X", "CALIPER_Y", "CALIPER_Z")):
         f.write(f"*SPRING, ELSET={es}\n{d + 1}\n{k_node[d]:.9g}\n")
-    f.write("""*BOUNDARY
+    f.write(f"""*BOUNDARY
 DISC_CLAMP, 1, 3
-*STEP
-*FREQUENCY, SOLVER=MATRIXSTORAGE
-*END STEP
-""")
+{STEP}""")
+with open(os.path.join(a.outdir, a.job + "_lining.inp"), "w") as f:
+    f.write(f"""** the lining of {a.job}.inp alone, for its damping: written by examples/brake/make_brake.py
+*INCLUDE, INPUT={a.job}_lining_mesh.inp
+{LINING}*SOLID SECTION, ELSET=LINING, MATERIAL=LINING
+{STEP}""")
 t_mesh = time.time() - t0
 print(f"make_brake.py: {deck}: size {a.size}, pad face {n_pad_r + 1} x {n_pad_t + 1} nodes, "
       f"disc {n_in_r + n_pad_r + n_out_r} x {n_pad_t + n_rest_t} x {n_disc_z} cells; gmsh {t_mesh:.1f} s")
 if not a.no_ccx:
-    t1 = time.time()
-    with open(os.path.join(a.outdir, a.job + ".ccx.log"), "w") as log:
-        rc = subprocess.call(["ccx", "-i", a.job], cwd=a.outdir, stdout=log, stderr=subprocess.STDOUT)
-    if rc != 0 or not os.path.exists(os.path.join(a.outdir, a.job + ".sti")):
-        sys.exit(f"make_brake.py: error: ccx failed (exit {rc}); see {os.path.join(a.outdir, a.job + '.ccx.log')}")
-    ndof = sum(1 for _ in open(os.path.join(a.outdir, a.job + ".dof")))
-    print(f"make_brake.py: ccx wrote {a.job}.sti/.mas/.dof: {ndof} DOFs in {time.time() - t1:.1f} s")
+    for job in (a.job, a.job + "_lining"):
+        t1 = time.time()
+        with open(os.path.join(a.outdir, job + ".ccx.log"), "w") as log:
+            rc = subprocess.call(["ccx", "-i", job], cwd=a.outdir, stdout=log, stderr=subprocess.STDOUT)
+        if rc != 0 or not os.path.exists(os.path.join(a.outdir, job + ".sti")):
+            sys.exit(f"make_brake.py: error: ccx failed (exit {rc}); see {os.path.join(a.outdir, job + '.ccx.log')}")
+        ndof = sum(1 for _ in open(os.path.join(a.outdir, job + ".dof")))
+        print(f"make_brake.py: ccx wrote {job}.sti/.mas/.dof: {ndof} DOFs in {time.time() - t1:.1f} s")

@@ -11,7 +11,7 @@ size="${1:-1}"
 [ $# -gt 0 ] && shift
 out="$SQUEAL_BUILD/brake-$size"
 [ -x "$SQUEAL_BUILD/squeal" ] || { echo "run_brake.sh: build squeal first (bash scripts/quickstart.sh)" >&2; exit 1; }
-if [ ! -s "$out/brake.sti" ]; then
+if [ ! -s "$out/brake.sti" ] || [ ! -s "$out/brake_lining.sti" ]; then  # the lining job came later
   /usr/bin/python3 "$here/make_brake.py" "$out" --size "$size"
 fi
 cd "$out"
