@@ -297,7 +297,8 @@ TEST(Calculix, DampedPartsMapOntoTheModelByNodeAndDirection)
   for (size_t n = 0; n < model.mesh->node_ids.size(); ++n) {
     if (model.mesh->node_ids[n] > 1000) continue; // the pad's nodes are numbered from 1001
     for (PetscInt r : model.mesh->dof[n]) {
-      if (r >= 0) EXPECT_EQ(Kp.row(r).cwiseAbs().maxCoeff(), 0.0) << "plate row " << r;
+      if (r < 0) continue;
+      EXPECT_EQ(Kp.row(r).cwiseAbs().maxCoeff(), 0.0) << "plate row " << r;
     }
   }
   EXPECT_GT(Kp.cwiseAbs().maxCoeff(), 1e6);
