@@ -18,6 +18,8 @@
 #include <sstream>
 #include <string>
 
+#include <unistd.h>
+
 using namespace squeal;
 
 namespace {
@@ -319,10 +321,25 @@ TEST(Calculix, DampedPartsRefusedByName)
   EXPECT_NE(build({"no_such_part"}, {1.0}), 0);        // missing files
   EXPECT_EQ(build({kData + "tb_pad"}, {1.0}), 0);      // an absolute path is taken as it is
   // A part of another model: a node the deck does not have.
-  const std::string stem = ::testing::TempDir() + "squeal_bad_part";
-  std::ofstream(stem + ".dof") << "1001.1\n99999.3\n";
-  std::ofstream(stem + ".sti") << "1 1 1.0\n1 2 0.5\n2 2 1.0\n";
+  // Rank 0 writes the files, named after its process (test runs go on side by side); every rank
+  // reads them.
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  long pid = (long)getpid();
+  MPI_Bcast(&pid, 1, MPI_LONG, 0, PETSC_COMM_WORLD);
+  const std::string stem = ::testing::TempDir() + "squeal_bad_part_" + std::to_string(pid);
+  auto write = [&](const char *dof) {
+    if (rank == 0) {
+      std::ofstream(stem + ".dof") << dof;
+      std::ofstream(stem + ".sti") << "1 1 1.0\n1 2 0.5\n2 2 1.0\n";
+    }
+    MPI_Barrier(PETSC_COMM_WORLD);
+  };
+  write("1001.1\n99999.3\n");
   EXPECT_NE(build({stem}, {1.0}), 0);
-  std::ofstream(stem + ".dof") << "1001.1\n1001.2\n";
+  MPI_Barrier(PETSC_COMM_WORLD); // read by every rank before rank 0 rewrites it
+  write("1001.1\n1001.2\n");
   EXPECT_EQ(build({stem}, {1.0}), 0); // the same files with nodes of the deck
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (rank == 0) std::remove((stem + ".dof").c_str()), std::remove((stem + ".sti").c_str());
 }
