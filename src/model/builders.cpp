@@ -14,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <utility>
 
 namespace squeal {
 
@@ -437,6 +438,7 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
     PetscCall(MatDuplicate(model.K, MAT_COPY_VALUES, model.C.out()));
     PetscCall(MatScale(model.C, s.ray_b));
     PetscCall(MatAXPY(model.C, s.ray_a, model.M, DIFFERENT_NONZERO_PATTERN));
+    MatH extra; // sum of the parts' b_i K_i
     for (size_t i = 0; i < s.part_jobs.size(); ++i) {
       // The part's own job: its .dof numbers only its DOFs, so its rows are mapped by node and
       // direction onto the model's.
@@ -450,7 +452,12 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
       PetscCall(io::ReadCalculixPartDofMap(comm, pdof.c_str(), *mesh, rows));
       PetscCall(io::MatLoadCalculix(comm, psti.c_str(), N, Kp.out(), &rows));
       PetscCall(MatAXPY(model.C, s.part_b[i], Kp, DIFFERENT_NONZERO_PATTERN));
+      if (!extra) {
+        PetscCall(MatDuplicate(Kp, MAT_COPY_VALUES, extra.out()));
+        PetscCall(MatScale(extra, s.part_b[i]));
+      } else PetscCall(MatAXPY(extra, s.part_b[i], Kp, DIFFERENT_NONZERO_PATTERN));
     }
+    if (extra) model.damping_a = s.ray_a, model.damping_b = s.ray_b, model.damping_extra = std::move(extra);
   } else model.C.reset();
 
   // Preload: a pressure on a face and/or a load vector in the .dof numbering.

@@ -141,6 +141,22 @@ PetscErrorCode SymmetricProjection(Mat A, Mat W, PetscInt nc, Dense &P)
   PetscCall(MatGetSize(W, nullptr, &n));
   n = PetscMin(n, nc);
   P = Dense::Zero(n, n);
+  // A matrix with entries on a few rows (a part damped on its own: the lining's 9 765 of the
+  // 126 861-DOF brake's rows) needs W^T G over those rows only, G = A W being zero elsewhere.
+  std::vector<PetscInt> rows;
+  {
+    PetscInt rstart, rend;
+    PetscCall(MatGetOwnershipRange(A, &rstart, &rend));
+    PetscCheck(rend - rstart == nloc, PETSC_COMM_SELF, PETSC_ERR_PLIB, "projection: A's rows are not laid out as W's");
+    for (PetscInt i = rstart; i < rend; ++i) {
+      PetscInt ncols;
+      PetscCall(MatGetRow(A, i, &ncols, nullptr, nullptr));
+      if (ncols > 0) rows.push_back(i - rstart);
+      PetscCall(MatRestoreRow(A, i, &ncols, nullptr, nullptr));
+    }
+  }
+  const bool compact = 2 * (PetscInt)rows.size() < nloc;
+  Dense      Wc, Gc;
   for (PetscInt c0 = 0; c0 < n; c0 += block) {
     // Seconds a block on the 126 861-DOF brake (122 s for the projections there, polled nowhere
     // before: under mpiexec the ranks were killed a second after the signal, without a word).
@@ -161,7 +177,12 @@ PetscErrorCode SymmetricProjection(Mat A, Mat W, PetscInt nc, Dense &P)
       using CMap = Eigen::Map<const Dense, 0, Eigen::OuterStride<>>;
       const CMap Wl(w + (size_t)c0 * ldw, nloc, n - c0, Eigen::OuterStride<>(ldw)), Gl(g, nloc, c1 - c0, Eigen::OuterStride<>(ldg));
       auto       Pb = P.block(c0, c0, n - c0, c1 - c0);
-      Gemm(Wl, true, Gl, Pb, 1.0, 1.0);
+      if (compact) {
+        const PetscInt nr = (PetscInt)rows.size();
+        Wc.resize(nr, n - c0), Gc.resize(nr, c1 - c0);
+        for (PetscInt r = 0; r < nr; ++r) Wc.row(r) = Wl.row(rows[r]), Gc.row(r) = Gl.row(rows[r]);
+        if (nr > 0) Gemm(Wc, true, Gc, Pb, 1.0, 1.0);
+      } else Gemm(Wl, true, Gl, Pb, 1.0, 1.0);
     }
     PetscCall(MatDenseRestoreArrayRead(Gb, &g));
     PetscCall(MatDenseRestoreArrayRead(W, &w));
@@ -1128,8 +1149,14 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
     bool      rayleigh = false;
     if (full.C && rayleigh_) PetscCall(DetectRayleigh(full.M, full.K, full.C, &rayleigh, &ray_a, &ray_b));
     info_.rayleigh = rayleigh;
+    // A C whose builder knows it is a M + b K + a few rows' extra (parts damped on their own):
+    // only the extra is projected, at the cost of its rows (SymmetricProjection skips empty rows).
+    info_.damping_split = !rayleigh && rayleigh_ && full.C && full.damping_a >= 0 && full.damping_extra;
     if (full.C && rayleigh) Cr = ray_a * Mr + ray_b * Kr;
-    else if (full.C) PetscCall(ProjectMatrix(part, basis, full.C, Projected::general, Cr, nullptr));
+    else if (info_.damping_split) {
+      PetscCall(ProjectMatrix(part, basis, full.damping_extra, Projected::general, Cr, nullptr));
+      Cr += full.damping_a * Mr + full.damping_b * Kr;
+    } else if (full.C) PetscCall(ProjectMatrix(part, basis, full.C, Projected::general, Cr, nullptr));
     if (iface_modes_ >= 0 || iface_fmax_ > 0)
       PetscCall(cb::InterfaceReduction(comm, full.contacts, Permuted(basis, Mr), Permuted(basis, Kr), iface_modes_, iface_fmax_,
                                        iface_statics_, prefix_.c_str(), basis.m, T, red.contacts, info_));
@@ -1230,7 +1257,9 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
                                    "projection %.3f s%s), resident memory %.1f MB (all ranks; peak of the largest rank so far %.1f MB)\n",
                                    (double)info_.time_total, (double)info_.time_factor, (double)info_.time_modes, sliced,
                                    (double)info_.time_static, (double)info_.time_project,
-                                   info_.rayleigh ? ", C = a M + b K projected as a M_r + b K_r" : "",
+                                   info_.rayleigh         ? ", C = a M + b K projected as a M_r + b K_r"
+                                   : info_.damping_split ? ", C = a M + b K + the damped parts: the parts projected alone"
+                                                         : "",
                                    (double)(info_.mem_peak / 1048576.0), (double)(info_.mem_rank_hwm / 1048576.0)));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  CPU time of the busiest rank: %.3f s (%.3f, %.3f, %.3f, %.3f)\n",
                                    (double)(info_.cpu_factor + info_.cpu_modes + info_.cpu_static + info_.cpu_project),

@@ -7,12 +7,14 @@
 #include "squeal/io/calculix.h"
 #include "squeal/model/builders.h"
 #include "squeal/model/fe_contact.h"
+#include "squeal/reduction/craig_bampton.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <fstream>
 #include <sstream>
@@ -342,4 +344,59 @@ TEST(Calculix, DampedPartsRefusedByName)
   EXPECT_EQ(build({stem}, {1.0}), 0); // the same files with nodes of the deck
   MPI_Barrier(PETSC_COMM_WORLD);
   if (rank == 0) std::remove((stem + ".dof").c_str()), std::remove((stem + ".sti").c_str());
+}
+
+// Craig-Bampton of a model with a part damped on its own: C = a M + b K + b_p K_pad. The
+// reduction projects K_pad alone (on the rows it touches) and adds a M_r + b K_r; the general
+// path projects the whole C. The two reduced models have the same invariants of a change of basis
+// (on 2 ranks two reductions may rotate a degenerate pair of modes), to 1e-10.
+TEST(Calculix, DampedPartsProjectedAloneByCraigBampton)
+{
+  Model             full;
+  CalculixModelSpec s = TwoBlocks();
+  s.ray_a             = 20.0;
+  s.ray_b             = 1e-7;
+  s.part_jobs         = {"tb_pad"};
+  s.part_b            = {4e-6};
+  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, s, full), 0);
+  ASSERT_GE(full.damping_a, 0.0);
+  auto reduce = [&](bool shortcut, Model &red, ReductionInfo &info) {
+    CraigBampton cb(full.comm());
+    ASSERT_EQ(cb.SetFMax(3e5), 0);
+    ASSERT_EQ(cb.SetRayleighShortcut(shortcut), 0);
+    ASSERT_EQ(cb.Reduce(full, red), 0);
+    info = cb.Info();
+  };
+  // Invariants of a change of basis T (M' = T^T M T, ...: M'^-1 C' = T^-1 M^-1 C T): traces of
+  // products of M^-1 C and M^-1 K.
+  auto invariants = [](const Model &m) {
+    const Eigen::MatrixXd M = test::ToDense(m.M), C = test::ToDense(m.C), K = test::ToDense(m.K);
+    const Eigen::MatrixXd A = M.ldlt().solve(C), B = M.ldlt().solve(K);
+    return Eigen::Vector3d(A.trace(), (A * A).trace(), (A * B).trace());
+  };
+  Model         split, general;
+  ReductionInfo is, ig;
+  reduce(true, split, is);
+  reduce(false, general, ig);
+  EXPECT_TRUE(is.damping_split);
+  EXPECT_FALSE(is.rayleigh);
+  EXPECT_FALSE(ig.damping_split);
+  ASSERT_GT(is.n_modes, 0);
+  const Eigen::Vector3d a = invariants(split), b = invariants(general);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(a(k) / b(k), 1.0, 1e-10) << "invariant " << k;
+  // The lining's damping is felt: tr(M_r^-1 C_r) is larger than Rayleigh's alone.
+  Model             rayleigh;
+  CalculixModelSpec r = s;
+  r.part_jobs.clear(), r.part_b.clear();
+  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, r, rayleigh), 0);
+  Model         rr;
+  ReductionInfo ir;
+  {
+    CraigBampton cb(rayleigh.comm());
+    ASSERT_EQ(cb.SetFMax(3e5), 0);
+    ASSERT_EQ(cb.Reduce(rayleigh, rr), 0);
+    ir = cb.Info();
+  }
+  EXPECT_TRUE(ir.rayleigh);
+  EXPECT_GT(a(0), 1.5 * invariants(rr)(0));
 }

@@ -27,6 +27,11 @@ public:
   std::string name = "model";
   MatH        M, C, K; // C may be empty: no viscous damping
   VecH        F;
+  // C = damping_a M + damping_b K + damping_extra, when its builder knows (damping_a >= 0); the
+  // extra holds entries on a few rows only (parts damped on their own). A reduction then projects
+  // the extra alone and takes the rest from M's and K's projections. damping_a < 0: unknown.
+  PetscReal   damping_a = -1, damping_b = 0;
+  MatH        damping_extra;
   ContactSet  contacts;
 
   // The FE mesh the model was read from, if any (its dof map indexes the full model's DOFs).

@@ -72,6 +72,7 @@ struct ReductionInfo {
   // (other processes taking time slices) changes far less than the wall times above.
   PetscReal              cpu_factor = 0, cpu_modes = 0, cpu_static = 0, cpu_project = 0;
   bool                   rayleigh = false; // C detected as a M + b K and projected as a M_r + b K_r
+  bool                   damping_split = false; // C = a M + b K + parts (Model::damping_extra): the parts projected alone
   PetscLogDouble         mem_peak = 0;        // bytes, resident set size after the reduction (sum over ranks)
   PetscLogDouble         mem_rank_hwm = 0;    // bytes, the largest rank's peak resident set size so far
   // Interface reduction (0: none): one normal coordinate per point kept, the interface's characteristic constraint modes kept and their frequencies (Hz).
