@@ -40,6 +40,17 @@ CalculixModelSpec TwoBlocks()
   return s;
 }
 
+// The two blocks with C = a M + b K + b_pad K_pad (the pad's own job, tb_pad).
+CalculixModelSpec DampedPad(PetscReal a, PetscReal b, PetscReal b_pad)
+{
+  CalculixModelSpec s = TwoBlocks();
+  s.ray_a             = a;
+  s.ray_b             = b;
+  s.part_jobs         = {"tb_pad"};
+  s.part_b            = {b_pad};
+  return s;
+}
+
 // A plate (x in [0, 0.12], z in [-0.004, 0]) and a block above it (x in [x0, x0 + 0.04],
 // z in [0, 0.01]), both 0.04 wide in y, built directly as an FeMesh with every DOF free.
 // cells_x: the block's cells along x; the plate has 6 (0.02 m each), 2 across y for both.
@@ -284,13 +295,8 @@ TEST(Calculix, DampedPartsMapOntoTheModelByNodeAndDirection)
 
   // The pad alone with its own factor, and Rayleigh on top: C = a M + b K + b_pad K_pad, whose
   // pad part vanishes on the rows of the plate's nodes.
-  Model             m2;
-  CalculixModelSpec s2 = TwoBlocks();
-  s2.ray_a             = 3.0;
-  s2.ray_b             = 1e-6;
-  s2.part_jobs         = {"tb_pad"};
-  s2.part_b            = {2e-5};
-  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, s2, m2), 0);
+  Model m2;
+  ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, DampedPad(3.0, 1e-6, 2e-5), m2), 0);
   Model             m3;
   CalculixModelSpec s3 = TwoBlocks();
   s3.part_jobs         = {"tb_pad"};
@@ -352,12 +358,8 @@ TEST(Calculix, DampedPartsRefusedByName)
 // (on 2 ranks two reductions may rotate a degenerate pair of modes), to 1e-10.
 TEST(Calculix, DampedPartsProjectedAloneByCraigBampton)
 {
-  Model             full;
-  CalculixModelSpec s = TwoBlocks();
-  s.ray_a             = 20.0;
-  s.ray_b             = 1e-7;
-  s.part_jobs         = {"tb_pad"};
-  s.part_b            = {4e-6};
+  Model                   full;
+  const CalculixModelSpec s = DampedPad(20.0, 1e-7, 4e-6);
   ASSERT_EQ(BuildCalculix(PETSC_COMM_WORLD, s, full), 0);
   ASSERT_GE(full.damping_a, 0.0);
   auto reduce = [&](bool shortcut, Model &red, ReductionInfo &info) {
