@@ -441,8 +441,8 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
     MatH extra; // sum of the parts' b_i K_i
     for (size_t i = 0; i < s.part_jobs.size(); ++i) {
       // The part's own job: its .dof numbers only its DOFs, so its rows are mapped by node and
-      // direction onto the model's.
-      // A relative part is in the model's folder, as the deck's *INCLUDE files are.
+      // direction onto the model's. A relative part is in the model's folder, as the deck's
+      // *INCLUDE files are.
       std::string  part = s.part_jobs[i];
       const size_t slash = s.job.find_last_of('/');
       if (!part.empty() && part[0] != '/' && slash != std::string::npos) part = s.job.substr(0, slash + 1) + part;
@@ -451,13 +451,15 @@ PetscErrorCode BuildCalculix(MPI_Comm comm, const CalculixModelSpec &s, Model &m
       MatH                   Kp;
       PetscCall(io::ReadCalculixPartDofMap(comm, pdof.c_str(), *mesh, rows));
       PetscCall(io::MatLoadCalculix(comm, psti.c_str(), N, Kp.out(), &rows));
-      PetscCall(MatAXPY(model.C, s.part_b[i], Kp, DIFFERENT_NONZERO_PATTERN));
       if (!extra) {
         PetscCall(MatDuplicate(Kp, MAT_COPY_VALUES, extra.out()));
         PetscCall(MatScale(extra, s.part_b[i]));
       } else PetscCall(MatAXPY(extra, s.part_b[i], Kp, DIFFERENT_NONZERO_PATTERN));
     }
-    if (extra) model.damping_a = s.ray_a, model.damping_b = s.ray_b, model.damping_extra = std::move(extra);
+    if (extra) {
+      PetscCall(MatAXPY(model.C, 1.0, extra, DIFFERENT_NONZERO_PATTERN));
+      model.damping_a = s.ray_a, model.damping_b = s.ray_b, model.damping_extra = std::move(extra);
+    }
   } else model.C.reset();
 
   // Preload: a pressure on a face and/or a load vector in the .dof numbering.
