@@ -431,6 +431,7 @@ PetscErrorCode Shooting::Solve(const Model &model, const SlidingEquilibrium &eq,
   pre_measured_ = 0, recentred_ = false;
   // Set up at T0 now: which back end the model gets decides how the bordered system is solved.
   T_setup_ = PETSC_MAX_REAL; // this model, or its new mu or load, may not be the one last set up
+  Mlin_.resize(0, 0);        // ... nor its linearisation's monodromy
   PetscCall(SetUpAt(T0));
   PetscCall(SetUpNewton());
   PetscCall(CreateState(x.out()));

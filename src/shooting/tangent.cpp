@@ -360,6 +360,7 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
     // reactions: every point closed and sliding, slip direction against V_c.
     PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
     PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_, size_ > 1 ? comm_ : PETSC_COMM_SELF, interruptible ? "the linear preconditioner's monodromy" : nullptr));
+    PetscCall(Unpack(x, aU_, adU_, &Mlin_T_));
     jpc_.Reset();
     PetscCall(PetscLogEventEnd(shoot_ev::linear_pc, 0, 0, 0, 0));
   }

@@ -276,6 +276,7 @@ private:
   bool            jdense_ = false; // this solve uses the dense bordered Jacobian
   bool            jlinear_ = false; // ... or the linearised-monodromy preconditioner (-shoot_linear_pc)
   Eigen::MatrixXd Mlin_;            // its monodromy, built at the first Jacobian of a solve
+  PetscReal       Mlin_T_ = 0;      // ... at this period (a restart within 1e-3 of it keeps it)
   BorderedLU      jpc_;             // the bordered Mlin_ - I, factorised once per start
   bool            jpc_anchored_ = false; // its factor has the phase row
   PetscErrorCode  BuildLinearPreconditioner(Vec x);
