@@ -251,6 +251,11 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   } unhook{on_step_};
 
   PetscReal T = T0, e = kInf;
+  std::vector<PetscReal> growths;  // each period's relative energy change, for -shoot_pre_boost
+  PetscReal              gmax = 0; // ... the largest
+  int                    boosting = 0; // 0: not yet, 1: on, -1: over
+  constexpr int          kSteady = 5;
+  constexpr PetscReal    kSpread = 1.5, kLinear = 0.75, kMaxBoost = 1.05, kAfterBoost = 0.3;
   PetscInt  k = 0;
   PetscReal Tm    = 0; // the last measured period, once it agrees with the one before (0: not, or not yet)
   int       loops = 1;
@@ -262,7 +267,11 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   while (k < pre_periods) {
     if (interruptible) PetscCall(InterruptPoint(comm_, "shooting's pre-periods"));
     sec.SetStep(T, steps);
+    PetscReal E0, E1;
+    PetscCall(DeviationEnergy(U, dU, &E0));
     PetscCall(Flow(U, dU, T, U1_, dU1_, &r, nullptr));
+    PetscCall(DeviationEnergy(U1_, dU1_, &E1));
+    const PetscReal growth = E0 > 0 ? E1 / E0 - 1 : 0;
     ++k;
     pre_passes_ += flow_passes_, pre_steps_run_ += steps;
     PetscCall(VectorField(U1_, dU1_, r, gU_, gdU_));
@@ -270,9 +279,32 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
     PetscCall(ReturnDistance(U, dU, U1_, dU1_, gU_, gdU_, wU_, wdU_, &dt, &e));
     PetscCall(VecCopy(U1_, U));
     PetscCall(VecCopy(dU1_, dU));
+    // -shoot_pre_boost b: the period's energy change (1 + g) raised to 1 + b by scaling the deviation
+    // from Z_e, so that the flow's slow drift along the cycle's amplitude runs 1 + b times faster;
+    // the cycle (g = 0) is left as it is. Near the threshold a start on the growing side (g > 0)
+    // sends Newton to Z_e (the brake example at size 1: g = +8.5e-3, 2 sigma T = 9.1e-3 after 9
+    // pre-periods, and Newton's corrections halve |U - U_e| at every iteration).
+    // Only from a flow still in its linear growth: the last kSteady periods' gains within a factor
+    // kSpread of each other and at least kLinear of the largest so far (the 562-DOF pad's flow is
+    // past that: it gains 1e-2 a period after 2.6e-2 in its first, and its Newton converges from
+    // there); then on while the flow gains energy, never again once it stops.
+    PetscCallCXX(growths.push_back(std::isfinite(growth) ? growth : 0));
+    gmax = std::max(gmax, growths.back());
+    if (pre_boost > 0 && boosting == 0 && growths.size() >= (size_t)kSteady) {
+      PetscReal lo = kInf, hi = 0;
+      for (size_t i = growths.size() - kSteady; i < growths.size(); ++i) lo = std::min(lo, growths[i]), hi = std::max(hi, growths[i]);
+      if (lo > 0 && hi < kSpread * lo && lo >= kLinear * gmax) boosting = 1;
+    }
+    if (boosting == 1 && !(growths.back() > 0)) boosting = -1;
+    PetscReal boost = 1;
+    if (boosting == 1) {
+      boost = std::min(std::pow(1 + growths.back(), 0.5 * pre_boost), kMaxBoost);
+      PetscCall(VecAXPBY(U, 1 - boost, boost, Ue_)); // U = U_e + boost (U - U_e)
+      PetscCall(VecScale(dU, boost));
+    }
     if (mon)
-      PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s, %.1f contact iterations a step\n", k,
-                            (double)e, (double)(T + dt), (double)flow_passes_ / steps));
+      PetscCall(PetscPrintf(comm_, "  pre-period %3" PetscInt_FMT ": return distance %.3e at T + dt = %.9f s, energy %+.2e (x %.4f), %.1f contact iterations a step\n", k,
+                            (double)e, (double)(T + dt), (double)growth, (double)boost, (double)flow_passes_ / steps));
     if (sec.Measured(Tm, loops) && !resume) pre_measured_ = Tm;
     // Not on a restart: the motion has returned within -shoot_pre_tol at T with its period measured,
     // and so close to the cycle the section's loop count reads noise (the half brake's interface-
@@ -295,7 +327,11 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
     // periods) and settle elsewhere, and a single return can still read one loop of a cycle that
     // closes after two (there, stopping at the first return near T sent Newton to the unstable
     // one-loop cycle at 0.0096261 s instead of the attracting one at 0.0193433 s).
-    if (e < tol && (Tm > 0 || resume)) {
+    // Not while boosted: such a flow returns within the tolerance only because it grows slowly, and
+    // Newton from the growing side heads for Z_e.
+    // After a boost, kAfterBoost of the tolerance: that flow is near the threshold, where Newton's
+    // basin is small.
+    if (e < (boosting == -1 ? kAfterBoost * tol : tol) && (Tm > 0 || resume) && boosting != 1) {
       if (!swap.Coarse()) break;
       coarse_periods = k;
       swap.Restore();
@@ -342,6 +378,19 @@ PetscErrorCode Shooting::PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol
   pre_stagnated_ = stagnated, pre_best_recent_ = best_recent, pre_best_before_ = best_before;
   PetscCall(PetscLogEventEnd(shoot_ev::pre, 0, 0, 0, 0));
   PetscCall(Pack(U, dU, T, x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::DeviationEnergy(Vec U, Vec dU, PetscReal *E)
+{
+  PetscScalar a, b;
+  PetscFunctionBeginUser;
+  PetscCall(VecWAXPY(tmp_, -1.0, Ue_, U));
+  PetscCall(MatMult(model_->K, tmp_, wU_));
+  PetscCall(VecDot(tmp_, wU_, &a));
+  PetscCall(MatMult(model_->M, dU, wdU_));
+  PetscCall(VecDot(dU, wdU_, &b));
+  *E = 0.5 * PetscRealPart(a + b);
   PetscFunctionReturn(0);
 }
 

@@ -113,6 +113,12 @@ PetscErrorCode Shooting::SetFromOptions()
                     "m = (d / d_0)^-p + shift, d = |(omega_0 (U0 - U_e), dU0)|, d_0 its value at the start, and a "
                     "backtracking line search on it unless -shoot_snes_linesearch_type is given (0: off)",
                     "Shooting", &deflate_power, Range::NonNegative(), checks);
+  SquealOptionsReal("-pre_boost",
+                    "While the pre-periods' flow still gains energy at its linear rate (5 periods steady within 1.5 x, at least "
+                    "3/4 of the fastest so far), scale the state's deviation from the sliding equilibrium after each period so "
+                    "that its energy changes by (1 + g)^(1 + b) instead of 1 + g (at most 5 % a period), until the gain stops; "
+                    "Newton does not start from such a flow, and after it starts at 0.3 x -shoot_pre_tol (0: the plain flow)",
+                    "Shooting", &pre_boost, Range::NonNegative(), checks);
   SquealOptionsReal("-pre_fp_tol",
                     "Contact fixed-point tolerance in the pre-periods' flow (-theta_fp_tol if that is looser; Newton's flows and "
                     "everything after use -theta_fp_tol)",

@@ -1011,6 +1011,46 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   VecDestroy(&U0), VecDestroy(&dU0);
 }
 
+// -shoot_pre_boost near the threshold (case 1 at mu = 0.15: sigma = 3.03 1/s, sigma T = 0.034): from a
+// start ten times below the energy estimate the flow gains 7 % of its energy a period, steadily, and
+// returns within -shoot_pre_tol 0.05 after 5 periods only because it grows slowly. Newton from there
+// heads for Z_e and fails; the plain flow then needs 64 more periods to 0.005 before Newton converges.
+// Boosted, the pre-periods neither stop nor hand over while the flow grows at its linear rate; the drift
+// runs 1 + b times faster, it hands over at 0.3 of the tolerance, and Newton converges from the first
+// start on the same cycle.
+TEST(Shooting, BoostedPrePeriodsLeaveTheLinearGrowthBeforeNewton)
+{
+  ThreeDofParams p; // case 1
+  p.mu = 0.15;
+  ShootingResult res[2];
+  PetscInt       flow[2];
+  for (int b : {0, 1}) {
+    Problem pr(p);
+    ASSERT_TRUE(pr.est.found);
+    ASSERT_EQ(pr.stab.unstable.size(), 1u);
+    Vec U0, dU0;
+    ASSERT_EQ(VecDuplicate(pr.est.U0, &U0), 0);
+    ASSERT_EQ(VecDuplicate(pr.est.dU0, &dU0), 0);
+    ASSERT_EQ(VecAXPBYPCZ(U0, 0.1, 0.9, 0.0, pr.est.U0, pr.eq.U), 0); // U_e + 0.1 (U0 - U_e)
+    ASSERT_EQ(VecAXPBY(dU0, 0.1, 0.0, pr.est.dU0), 0);
+    pr.sh.Floquet().compute = PETSC_FALSE;
+    pr.sh.pre_periods       = 400;
+    pr.sh.pre_tol           = 0.05;
+    pr.sh.pre_boost         = b ? 10 : 0;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, U0, dU0, pr.est.T0, res[b]), 0) << "boost " << b << ": " << res[b].reason;
+    EXPECT_TRUE(res[b].converged);
+    flow[b] = res[b].pre_periods + res[b].newton_evaluations;
+    VecDestroy(&U0), VecDestroy(&dU0);
+  }
+  EXPECT_GE(res[0].pre_retries, 1) << "the plain flow's first start: Newton from the linear growth";
+  EXPECT_EQ(res[1].pre_retries, 0) << "boosted: Newton converges from the first start";
+  EXPECT_LT(res[1].pre_periods, res[0].pre_periods); // measured 36 against 69
+  EXPECT_LT(flow[1], flow[0]);
+  // The same cycle: the discrete one's period moves with the phase Newton settles at (2e-6, above).
+  EXPECT_NEAR(res[1].period / res[0].period, 1.0, 2e-6);
+  EXPECT_NEAR(res[1].frac_separated, res[0].frac_separated, 0.02);
+}
+
 // The verdict is only as good as the multipliers: a margin inside their error is "undecided".
 // Cases: the 2625-DOF pad's cycle (0.9743, trivial 1 + 1.8e-3), the half brake's CB-30 cycle
 // (1.000652, trivial 1 + 4.75e-4), and the same with a phase dependence of 1e-3.

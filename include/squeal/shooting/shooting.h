@@ -208,6 +208,9 @@ public:
   // Newton iterates and the cycle as at 1e-8; the half brake's 58 pre-periods and 10 Newton
   // iterations are unchanged too (docs/records.md "Pre-periods' contact tolerance 1e-6").
   PetscReal pre_fp_tol       = 1e-6;
+  // -shoot_pre_boost b: each pre-period's energy change 1 + g made (1 + g)^(1 + b) by scaling the
+  // state's deviation from Z_e (pre_periods.cpp); 0: the plain flow.
+  PetscReal pre_boost        = 10;
   // -shoot_pre_retries: when Newton fails from pre-periods that returned within their tolerance,
   // the flow goes on from where they stopped to a 10 times smaller return distance and Newton starts
   // again from there, up to this many times.
@@ -245,6 +248,7 @@ private:
   // The pre-periods from (U0, dU0) at the start period T0, until the return distance is below tol
   // (-shoot_pre_tol, or a retry's tighter one); they add to pre_done_.
   PetscErrorCode PrePeriods(Vec U0, Vec dU0, PetscReal T0, PetscReal tol, Vec x);
+  PetscErrorCode DeviationEnergy(Vec U, Vec dU, PetscReal *E); // 1/2 dU^T M dU + 1/2 (U - U_e)^T K (U - U_e)
   PetscErrorCode Newton(Vec x, ShootingResult &res);
   PetscErrorCode NewtonFailure(SNESConvergedReason reason);
   std::string    FailureHint(const ShootingResult &res) const; // the options that help, after a failed Newton
