@@ -74,6 +74,18 @@ PetscErrorCode CycleStart(Problem &p, const ShootingResult &sr, Vec *x)
   PetscFunctionReturn(0);
 }
 
+// A start a tenth of the energy estimate's amplitude from Z_e, in the linear regime:
+// (U_e + 0.1 (U0 - U_e), 0.1 dU0).
+PetscErrorCode TenthOfTheEstimate(const Problem &pr, Vec *U0, Vec *dU0)
+{
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(pr.est.U0, U0));
+  PetscCall(VecDuplicate(pr.est.dU0, dU0));
+  PetscCall(VecAXPBYPCZ(*U0, 0.1, 0.9, 0.0, pr.est.U0, pr.eq.U));
+  PetscCall(VecAXPBY(*dU0, 0.1, 0.0, pr.est.dU0));
+  PetscFunctionReturn(0);
+}
+
 } // namespace
 
 TEST(Shooting, BothCasesConvergeAndMatchTheTransient)
@@ -972,10 +984,7 @@ TEST(Shooting, DeflationTakesAStartInTheLinearRegimeToTheCycleNotTheEquilibrium)
   Problem        pr(p);
   ASSERT_TRUE(pr.est.found);
   Vec U0, dU0;
-  ASSERT_EQ(VecDuplicate(pr.est.U0, &U0), 0);
-  ASSERT_EQ(VecDuplicate(pr.est.dU0, &dU0), 0);
-  ASSERT_EQ(VecAXPBYPCZ(U0, 0.1, 0.9, 0.0, pr.est.U0, pr.eq.U), 0); // U_e + 0.1 (U0 - U_e)
-  ASSERT_EQ(VecAXPBY(dU0, 0.1, 0.0, pr.est.dU0), 0);
+  ASSERT_EQ(TenthOfTheEstimate(pr, &U0, &dU0), 0);
   pr.sh.Floquet().compute = PETSC_FALSE;
   ShootingResult plain, defl;
   PetscPushErrorHandler(PetscReturnErrorHandler, nullptr);
@@ -1029,10 +1038,7 @@ TEST(Shooting, BoostedPrePeriodsLeaveTheLinearGrowthBeforeNewton)
     ASSERT_TRUE(pr.est.found);
     ASSERT_EQ(pr.stab.unstable.size(), 1u);
     Vec U0, dU0;
-    ASSERT_EQ(VecDuplicate(pr.est.U0, &U0), 0);
-    ASSERT_EQ(VecDuplicate(pr.est.dU0, &dU0), 0);
-    ASSERT_EQ(VecAXPBYPCZ(U0, 0.1, 0.9, 0.0, pr.est.U0, pr.eq.U), 0); // U_e + 0.1 (U0 - U_e)
-    ASSERT_EQ(VecAXPBY(dU0, 0.1, 0.0, pr.est.dU0), 0);
+    ASSERT_EQ(TenthOfTheEstimate(pr, &U0, &dU0), 0);
     pr.sh.Floquet().compute = PETSC_FALSE;
     pr.sh.pre_periods       = 400;
     pr.sh.pre_tol           = 0.05;
