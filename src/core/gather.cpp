@@ -35,6 +35,33 @@ PetscErrorCode SetOwnedRows(const PetscReal *full, Vec v)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode GatherMatrix(Mat A, bool to_all, Eigen::MatrixXd &out)
+{
+  PetscInt    m, n;
+  PetscMPIInt rank;
+  Handle<IS>  rows, cols;
+  Mat        *sub = nullptr;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(PetscObjectComm((PetscObject)A), &rank));
+  PetscCall(MatGetSize(A, &m, &n));
+  const bool here = to_all || rank == 0;
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, here ? m : 0, 0, 1, rows.out()));
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, here ? n : 0, 0, 1, cols.out()));
+  const IS ir = rows, ic = cols;
+  PetscCall(MatCreateSubMatrices(A, 1, &ir, &ic, MAT_INITIAL_MATRIX, &sub));
+  out.setZero(here ? m : 0, here ? n : 0);
+  for (PetscInt i = 0; here && i < m; ++i) {
+    PetscInt           nc;
+    const PetscInt    *cj;
+    const PetscScalar *v;
+    PetscCall(MatGetRow(sub[0], i, &nc, &cj, &v));
+    for (PetscInt k = 0; k < nc; ++k) out(i, cj[k]) = PetscRealPart(v[k]);
+    PetscCall(MatRestoreRow(sub[0], i, &nc, &cj, &v));
+  }
+  PetscCall(MatDestroySubMatrices(1, &sub));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode AllGather::SetUp(Vec like)
 {
   PetscFunctionBeginUser;

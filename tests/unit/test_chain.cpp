@@ -91,6 +91,51 @@ TEST(Chain, LiftedPointIsReleasedAndReported)
                     1e-8);
 }
 
+// The guard's eigenvalues (SolveUpTo) by LAPACK on the whole reduced problem: every one of the
+// 2 n_r in the bordered QZ reference (which shares no code with the reduction), and the same set
+// as the eigensolver's route (-stab_guard_dense_max 0) when that one is grown to all of them.
+TEST(Chain, GuardsDenseEigenvaluesAreTheReferencesAndTheEigensolvers)
+{
+  ChainParams p;
+  p.cells = 5;
+  Model model;
+  ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, p, model), 0);
+  EquilibriumSolver  eqs(PETSC_COMM_WORLD);
+  SlidingEquilibrium eq;
+  ASSERT_EQ(eqs.Solve(model, eq), 0);
+  ASSERT_TRUE(eq.released.empty());
+  const PetscReal everything = 1e9; // Hz, above the whole spectrum
+  StabilityResult dense, pep;
+  {
+    StabilitySolver stab(PETSC_COMM_WORLD);
+    ASSERT_EQ(stab.SolveUpTo(model, eq, everything, dense), 0);
+  }
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-stab_guard_dense_max", "0"), 0);
+  {
+    StabilitySolver stab(PETSC_COMM_WORLD);
+    ASSERT_EQ(stab.SolveUpTo(model, eq, everything, pep), 0);
+  }
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-stab_guard_dense_max"), 0);
+
+  const PetscInt n_r = model.Size() - model.contacts.Size(); // one pivot per closed point
+  EXPECT_TRUE(dense.all_eigenvalues);
+  EXPECT_EQ(dense.n_r, n_r);
+  EXPECT_TRUE(pep.all_eigenvalues);
+  ExpectInReference(dense, test::BorderedReference(test::ToDense(model.M), test::ToDense(model.C), test::ToDense(model.K), model.contacts, eq.N),
+                    1e-8); // the reference's own accuracy on this chain (as Chain.EquilibriumAndEigenvaluesMatchDenseReference)
+  // Complex pairs once, real eigenvalues each: 2 n_r in all.
+  PetscInt count = 0;
+  for (const Mode &m : dense.modes) count += m.Oscillatory() ? 2 : 1;
+  EXPECT_EQ(count, 2 * n_r);
+  ASSERT_EQ(dense.modes.size(), pep.modes.size());
+  for (size_t i = 0; i < dense.modes.size(); ++i) {
+    const std::complex<double> a(dense.modes[i].sigma, dense.modes[i].omega), b(pep.modes[i].sigma, pep.modes[i].omega);
+    EXPECT_LE(std::abs(a - b), 1e-8 * std::abs(b)) << "mode " << i;
+  }
+  ASSERT_FALSE(dense.unstable.empty());
+  EXPECT_EQ(dense.unstable, pep.unstable);
+}
+
 TEST(Sweep, CriticalMuOfReferenceCases)
 {
   struct Case {

@@ -4,6 +4,7 @@
 
 #include "squeal/core/handle.h"
 
+#include <petscmat.h>
 #include <petscvec.h>
 
 #include <Eigen/Dense>
@@ -18,6 +19,9 @@ PetscErrorCode GatherVector(Vec v, bool to_all, std::vector<PetscReal> &out);
 // The other way: v's own rows from a whole vector that this rank holds (full[i] for each owned row
 // i). Not collective.
 PetscErrorCode SetOwnedRows(const PetscReal *full, Vec v);
+// One-off gather of a distributed matrix (any type with MatCreateSubMatrices and MatGetRow: AIJ,
+// dense): in full on rank 0 (empty elsewhere), or on every rank (to_all). Collective.
+PetscErrorCode GatherMatrix(Mat A, bool to_all, Eigen::MatrixXd &out);
 
 class AllGather {
 public:

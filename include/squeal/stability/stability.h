@@ -103,8 +103,9 @@ public:
   // under -stab_.
   PetscErrorCode SetFromOptions();
   PetscErrorCode Solve(const Model &model, const SlidingEquilibrium &eq, StabilityResult &res);
-  // The same eigensolve over the band (0, fmax] without the modes' vectors: the unstable modes
-  // above the band that the time integration carries (-stab_guard_fmax).
+  // The eigenvalues over the band (0, fmax] without the modes' vectors: the unstable modes above
+  // the band that the time integration carries (-stab_guard_fmax). Up to 2 n_r =
+  // -stab_guard_dense_max all of them by LAPACK, else the same eigensolve as Solve's.
   PetscErrorCode SolveUpTo(const Model &model, const SlidingEquilibrium &eq, PetscReal fmax, StabilityResult &res);
   // -stab_guard_fmax (Hz): < 0 the top of a reduction made in this run, 0 off.
   PetscReal      GuardFMax() const { return guard_fmax_; }
@@ -120,6 +121,10 @@ public:
 
 private:
   PetscErrorCode NormaliseMode(const Model &model, Mode &m) const;
+  // SolveUpTo's route for small reduced problems (2 n_r <= -stab_guard_dense_max): all 2 n_r
+  // eigenvalues by LAPACK on rank 0, no vectors. *done false where M_r is not positive definite
+  // (the PEP then takes over).
+  PetscErrorCode SolveAllDense(const ReducedProblem &rp, StabilityResult &res, bool *done) const;
 
   MPI_Comm    comm_;
   std::string prefix_ = "stab_";
@@ -127,6 +132,7 @@ private:
   PetscReal   fmax_ = kDefaultBandHz, fmin_ = 0;
   PetscInt    nev_max_ = 1000;
   PetscReal   guard_fmax_ = -1;
+  PetscInt    guard_dense_max_ = 4000;
   PetscBool   guard_route_ = PETSC_TRUE;
   PEPH        pep_;
 };
