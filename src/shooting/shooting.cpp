@@ -119,6 +119,11 @@ PetscErrorCode Shooting::SetFromOptions()
                     "that its energy changes by (1 + g)^(1 + b) instead of 1 + g (at most 5 % a period), until the gain stops; "
                     "Newton does not start from such a flow, and after it starts at 0.3 x -shoot_pre_tol (0: the plain flow)",
                     "Shooting", &pre_boost, Range::NonNegative(), checks);
+  SquealOptionsReal("-pre_drift",
+                    "The pre-periods' flow keeps the period it runs over (and its step set-up) while the period estimate "
+                    "differs from it by at most this times the last return distance (relative to the period); the return "
+                    "distance is corrected to the estimate to first order (0: a set-up at every period)",
+                    "Shooting", &pre_drift, Range::NonNegative(), checks);
   SquealOptionsReal("-pre_fp_tol",
                     "Contact fixed-point tolerance in the pre-periods' flow (-theta_fp_tol if that is looser; Newton's flows and "
                     "everything after use -theta_fp_tol)",

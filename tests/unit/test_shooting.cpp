@@ -799,6 +799,39 @@ TEST(Shooting, PrePeriodsStopAtTheReturnToleranceAndReachTheSameCycle)
   }
 }
 
+// -shoot_pre_drift: the pre-periods' flow keeps the period it runs over, and its step's set-up,
+// while the period estimate differs from it by at most that times the last return distance.
+// Case 1 at mu = 0.15 from a tenth of the estimate (the boost test's start: some 40 pre-periods),
+// against a set-up at every pre-period (0): fewer set-ups, about as many pre-periods, and Newton on
+// the same cycle.
+TEST(Shooting, PrePeriodsKeepTheirStepSetUpWhileThePeriodBarelyMoves)
+{
+  ThreeDofParams p;
+  p.mu = 0.15;
+  ShootingResult res[2];
+  for (int keep : {0, 1}) {
+    Problem pr(p);
+    ASSERT_TRUE(pr.est.found);
+    Vec U0, dU0;
+    ASSERT_EQ(TenthOfTheEstimate(pr, &U0, &dU0), 0);
+    pr.sh.Floquet().compute = PETSC_FALSE;
+    pr.sh.pre_periods       = 400;
+    pr.sh.pre_tol           = 0.05;
+    pr.sh.pre_drift         = keep ? 1e-2 : 0;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, U0, dU0, pr.est.T0, res[keep]), 0) << res[keep].reason;
+    EXPECT_TRUE(res[keep].converged);
+    VecDestroy(&U0), VecDestroy(&dU0);
+  }
+  std::printf("%d pre-periods, %d set-ups at every period; %d pre-periods, %d set-ups kept within 1e-2 e\n", (int)res[0].pre_periods,
+              (int)res[0].setups, (int)res[1].pre_periods, (int)res[1].setups);
+  EXPECT_GE(res[0].setups, res[0].pre_periods); // one a pre-period at 0
+  EXPECT_LT(res[1].setups, res[0].setups / 2);
+  EXPECT_NEAR(res[1].pre_periods, res[0].pre_periods, 0.2 * res[0].pre_periods);
+  EXPECT_EQ(res[1].pre_retries, res[0].pre_retries);
+  EXPECT_NEAR(res[1].period / res[0].period, 1.0, 2e-6); // the phase dependence, as above
+  EXPECT_NEAR(res[1].frac_separated, res[0].frac_separated, 0.02);
+}
+
 // -shoot_pre_fp_tol: the pre-periods' flow solves its contact problems to a looser tolerance than
 // the integrator's (-theta_fp_tol), which Newton's flows get back. Against pre-periods at the
 // integrator's own tolerance: fewer contact iterations a step in them, the integrator's tolerance

@@ -211,6 +211,10 @@ public:
   // -shoot_pre_boost b: each pre-period's energy change 1 + g made (1 + g)^(1 + b) by scaling the
   // state's deviation from Z_e (pre_periods.cpp); 0: the plain flow.
   PetscReal pre_boost        = 10;
+  // -shoot_pre_drift: the pre-periods' flow keeps the period it runs over (a new period is a new step
+  // set-up) while the estimate differs from it by at most this times the last return distance, as a
+  // fraction of the period; 0: a set-up at every period's estimate.
+  PetscReal pre_drift        = 1e-2;
   // -shoot_pre_retries: when Newton fails from pre-periods that returned within their tolerance,
   // the flow goes on from where they stopped to a 10 times smaller return distance and Newton starts
   // again from there, up to this many times.
