@@ -121,8 +121,9 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Shooting", &pre_boost, Range::NonNegative(), checks);
   SquealOptionsReal("-pre_drift",
                     "The pre-periods' flow keeps the period it runs over (and its step set-up) while the period estimate "
-                    "differs from it by at most this times the last return distance (relative to the period); the return "
-                    "distance is corrected to the estimate to first order (0: a set-up at every period)",
+                    "differs from it by at most this times the last return distance (relative to the period, and at most 2e-3); "
+                    "the return distance is corrected to the estimate to first order; the fine periods after the coarse ones "
+                    "(-shoot_pre_steps) keep the exact period (0: a set-up at every period)",
                     "Shooting", &pre_drift, Range::NonNegative(), checks);
   SquealOptionsReal("-pre_fp_tol",
                     "Contact fixed-point tolerance in the pre-periods' flow (-theta_fp_tol if that is looser; Newton's flows and "

@@ -122,7 +122,7 @@ public:
 private:
   PetscErrorCode NormaliseMode(const Model &model, Mode &m) const;
   // SolveUpTo's route for small reduced problems (2 n_r <= -stab_guard_dense_max): all 2 n_r
-  // eigenvalues by LAPACK on rank 0, no vectors. *done false where M_r is not positive definite
+  // eigenvalues by LAPACK on rank 0, no vectors. *done false where M_r is singular or dgeev fails
   // (the PEP then takes over).
   PetscErrorCode SolveAllDense(const ReducedProblem &rp, StabilityResult &res, bool *done) const;
 
