@@ -602,6 +602,9 @@ PetscErrorCode RunApp(int argc, char **argv)
   if (size > 1 && gather && reduced && !req.sweep && !req.continuation) {
     Pipeline p0(PETSC_COMM_SELF);
     PetscCall(ModelGatherToRankZero(model, p0.model));
+    // What the reduction left for the analyses besides the model: without it the guard
+    // (-stab_guard_fmax's default, the reduction's top mode) was silently off on several ranks.
+    p0.reduction_top_hz = pl.reduction_top_hz;
     PetscCall(PetscPrintf(comm, "the reduced model (%" PetscInt_FMT " DOFs, dense) is analysed on rank 0 alone: split over %d ranks it costs more "
                                 "than it saves (-reduce_gather 0 splits it)\n",
                           model.Size(), size));
