@@ -77,6 +77,10 @@ PetscErrorCode Shooting::SetFromOptions()
                              "Above -shoot_jacobian_dense_max: precondition GMRES with the LU of the bordered Jacobian of the steady "
                              "sliding linearisation's monodromy (one step tangent raised to N_s by squaring)",
                              "Shooting", linear_pc, &linear_pc, nullptr));
+  PetscCall(PetscOptionsBool("-linear_pc_single",
+                             "The linear preconditioner's monodromy squared in single precision from 2N = 1024 on (sgemm: half the "
+                             "time; float's 1e-7 is far below what a preconditioner needs)",
+                             "Shooting", linear_pc_single, &linear_pc_single, nullptr));
   PetscCall(PetscOptionsInt("-pre_periods",
                             "Integrate this many periods T0 from the start (the energy estimate) before Newton: brings the start near "
                             "an attracting cycle whose shape differs from the unstable mode's (default from the model: 0 up to "

@@ -359,7 +359,11 @@ PetscErrorCode Shooting::BuildLinearPreconditioner(Vec x)
     // The steady-sliding linearisation's monodromy (integration/monodromy.h), at the equilibrium
     // reactions: every point closed and sliding, slip direction against V_c.
     PetscCall(PetscLogEventBegin(shoot_ev::linear_pc, 0, 0, 0, 0));
-    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_, size_ > 1 ? comm_ : PETSC_COMM_SELF, interruptible ? "the linear preconditioner's monodromy" : nullptr));
+    // In single precision from 2N = 1024 on (-shoot_linear_pc_single), where its 9 products of order
+    // 2N take seconds each (the size-1 brake, 2N = 3 716: 2.3 s in double); below, it costs little
+    // and the small models keep their iterates.
+    PetscCall(LinearMonodromy(*ti_, r_init_, steps, Mlin_, size_ > 1 ? comm_ : PETSC_COMM_SELF, interruptible ? "the linear preconditioner's monodromy" : nullptr,
+                              linear_pc_single && n2 >= 1024));
     PetscCall(Unpack(x, aU_, adU_, &Mlin_T_));
     jpc_.Reset();
     PetscCall(PetscLogEventEnd(shoot_ev::linear_pc, 0, 0, 0, 0));

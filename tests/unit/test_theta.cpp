@@ -705,5 +705,12 @@ TEST(Theta, LinearMonodromyIsTheStepTangentToTheStepsPower)
     Eigen::MatrixXd Pp;
     ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, Pp, model.comm(), "the test's monodromy"), 0);
     EXPECT_LT((Pp - ref).norm(), 1e-12 * ref.norm()) << steps << " steps, polled";
+    // In single precision (-shoot_linear_pc_single), split and polled as shooting runs it: float's
+    // rounding, about 1e-7 a product, grown by the powering's 9 products (200 steps), not more.
+    Eigen::MatrixXd Pf;
+    ASSERT_EQ(LinearMonodromy(run[0].ti, r0, steps, Pf, model.comm(), "the test's monodromy", true), 0);
+    const double ef = (Pf - ref).norm() / ref.norm();
+    EXPECT_LT(ef, 1e-5) << steps << " steps, single";
+    EXPECT_GT((Pf - Pp).norm(), 0.0) << steps << " steps: not the single-precision products";
   }
 }

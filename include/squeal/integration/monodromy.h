@@ -16,7 +16,9 @@ namespace squeal {
 // powering, each forming a block of columns (compute-bound, so two ranks halve it); by default one.
 // poll: if given, SIGINT/SIGTERM are polled on comm (collective, core/interrupt.h) within the
 // products, which take seconds from N ~ 1500 (a product of order 3188 is about 65 Gflop).
+// single: the powering's products in single precision (GemmFloat), S and P in double; P then
+// carries float's relative error, about 1e-7 a product, which a preconditioner does not notice.
 PetscErrorCode LinearMonodromy(ThetaIntegrator &ti, const Eigen::VectorXd &r0, PetscInt steps, Eigen::MatrixXd &P, MPI_Comm comm = PETSC_COMM_SELF,
-                               const char *poll = nullptr);
+                               const char *poll = nullptr, bool single = false);
 
 } // namespace squeal

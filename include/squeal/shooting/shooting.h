@@ -176,6 +176,8 @@ public:
   // Jacobian whose monodromy is that of the steady sliding linearisation (the step tangent at the
   // equilibrium reactions, raised to N_s by squaring; once per solve), up to 2N <= linear_pc_max.
   PetscBool linear_pc     = PETSC_TRUE;
+  // -shoot_linear_pc_single: that monodromy's squarings in single precision from 2N = 1024 on.
+  PetscBool linear_pc_single = PETSC_TRUE;
   PetscBool ew            = PETSC_TRUE; // -shoot_ew: inexact Newton for GMRES on products (Eisenstat-Walker)
   PetscBool monitor       = PETSC_FALSE; // -shoot_monitor: the pre-periods' and Newton's lines (also -shoot_snes_monitor)
   PetscInt  linear_pc_max = 6000;
