@@ -35,22 +35,16 @@ PetscErrorCode SetOwnedRows(const PetscReal *full, Vec v)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode GatherMatrix(Mat A, bool to_all, Eigen::MatrixXd &out)
+PetscErrorCode GatherSubmatrix(Mat A, IS rows, IS cols, Eigen::MatrixXd &out)
 {
-  PetscInt    m, n;
-  PetscMPIInt rank;
-  Handle<IS>  rows, cols;
-  Mat        *sub = nullptr;
+  PetscInt m, n;
+  Mat     *sub = nullptr;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(PetscObjectComm((PetscObject)A), &rank));
-  PetscCall(MatGetSize(A, &m, &n));
-  const bool here = to_all || rank == 0;
-  PetscCall(ISCreateStride(PETSC_COMM_SELF, here ? m : 0, 0, 1, rows.out()));
-  PetscCall(ISCreateStride(PETSC_COMM_SELF, here ? n : 0, 0, 1, cols.out()));
-  const IS ir = rows, ic = cols;
-  PetscCall(MatCreateSubMatrices(A, 1, &ir, &ic, MAT_INITIAL_MATRIX, &sub));
-  out.setZero(here ? m : 0, here ? n : 0);
-  for (PetscInt i = 0; here && i < m; ++i) {
+  PetscCall(ISGetLocalSize(rows, &m));
+  PetscCall(ISGetLocalSize(cols, &n));
+  PetscCall(MatCreateSubMatrices(A, 1, &rows, &cols, MAT_INITIAL_MATRIX, &sub));
+  out.setZero(m, n);
+  for (PetscInt i = 0; i < m; ++i) {
     PetscInt           nc;
     const PetscInt    *cj;
     const PetscScalar *v;
@@ -59,6 +53,21 @@ PetscErrorCode GatherMatrix(Mat A, bool to_all, Eigen::MatrixXd &out)
     PetscCall(MatRestoreRow(sub[0], i, &nc, &cj, &v));
   }
   PetscCall(MatDestroySubMatrices(1, &sub));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode GatherMatrix(Mat A, bool to_all, Eigen::MatrixXd &out)
+{
+  PetscInt    m, n;
+  PetscMPIInt rank;
+  Handle<IS>  rows, cols;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(PetscObjectComm((PetscObject)A), &rank));
+  PetscCall(MatGetSize(A, &m, &n));
+  const bool here = to_all || rank == 0;
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, here ? m : 0, 0, 1, rows.out()));
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, here ? n : 0, 0, 1, cols.out()));
+  PetscCall(GatherSubmatrix(A, rows, cols, out));
   PetscFunctionReturn(0);
 }
 

@@ -83,22 +83,10 @@ PetscErrorCode InterfaceTransposeProduct(Mat Aib, Mat W, Dense &S)
 // Every rank receives A(rows, rows) for a (small) list of global rows, as a dense matrix.
 PetscErrorCode GatherSubmatrix(Mat A, const std::vector<PetscInt> &rows, Dense &out)
 {
-  IS  is;
-  Mat *sub;
+  Handle<IS> is;
   PetscFunctionBeginUser;
-  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)rows.size(), rows.data(), PETSC_COPY_VALUES, &is));
-  PetscCall(MatCreateSubMatrices(A, 1, &is, &is, MAT_INITIAL_MATRIX, &sub));
-  out = Dense::Zero(rows.size(), rows.size());
-  for (PetscInt i = 0; i < (PetscInt)rows.size(); ++i) {
-    PetscInt           nc;
-    const PetscInt    *cols;
-    const PetscScalar *vals;
-    PetscCall(MatGetRow(sub[0], i, &nc, &cols, &vals));
-    for (PetscInt k = 0; k < nc; ++k) out(i, cols[k]) = PetscRealPart(vals[k]);
-    PetscCall(MatRestoreRow(sub[0], i, &nc, &cols, &vals));
-  }
-  PetscCall(MatDestroySubMatrices(1, &sub));
-  PetscCall(ISDestroy(&is));
+  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)rows.size(), rows.data(), PETSC_COPY_VALUES, is.out()));
+  PetscCall(squeal::GatherSubmatrix(A, is, is, out));
   PetscFunctionReturn(0);
 }
 

@@ -22,6 +22,9 @@ PetscErrorCode SetOwnedRows(const PetscReal *full, Vec v);
 // One-off gather of a distributed matrix (any type with MatCreateSubMatrices and MatGetRow: AIJ,
 // dense): in full on rank 0 (empty elsewhere), or on every rank (to_all). Collective.
 PetscErrorCode GatherMatrix(Mat A, bool to_all, Eigen::MatrixXd &out);
+// A(rows, cols) as a dense matrix on this rank, each rank with index sets of its own (on
+// PETSC_COMM_SELF, possibly empty). Collective.
+PetscErrorCode GatherSubmatrix(Mat A, IS rows, IS cols, Eigen::MatrixXd &out);
 
 class AllGather {
 public:
