@@ -15,6 +15,7 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::MatrixXd &W, P
   hW_                   = h * W;
   hWs_.resize(0, 0);
   sparse_ = false;
+  single_ = false, hWf_.resize(0, 0);
   v_.setZero(3 * nc);
   hist_.setZero(3 * nc, 3), n_hist_ = 0;
   solver_ = ContactSolver::kFixedPoint; // SetSolver sizes Newton's arrays for this W
@@ -41,6 +42,7 @@ void LocalContactSolver::Setup(const ContactSet &cs, const Eigen::SparseMatrix<P
   hWs_.makeCompressed();
   hW_.resize(0, 0);
   sparse_ = true;
+  single_ = false, hWf_.resize(0, 0);
   v_.setZero(3 * nc);
   hist_.setZero(3 * nc, 3), n_hist_ = 0;
   solver_ = ContactSolver::kFixedPoint;
@@ -124,6 +126,36 @@ void LocalContactSolver::SizeAnderson()
   rt_.setZero(mixing_or_newton ? m : 0), vt_.setZero(mixing_or_newton ? m : 0), rin_.setZero(fp_anderson_ > 0 ? m : 0);
 }
 
+bool LocalContactSolver::SetFixedPointSingle(PetscInt min_unknowns)
+{
+  const Eigen::Index m = hW_.rows();
+  single_              = !sparse_ && min_unknowns > 0 && m >= min_unknowns;
+  // Entries beyond float's range (or not finite) would not round to within 2^-24 of themselves.
+  if (single_) single_ = hW_.allFinite() && hW_.cwiseAbs().maxCoeff() < 1e30;
+  refreshes_ = 0;
+  if (!single_) {
+    hWf_.resize(0, 0), rx_.resize(0), vx_.resize(0);
+    return false;
+  }
+  hWf_ = hW_.cast<float>();
+  rx_.setZero(m), vx_.setZero(m);
+  // kappa = max_j sum_i g_i |h W_ij|, g_i the factor from row i's velocity to its reaction.
+  Eigen::VectorXd g(m);
+  for (Eigen::Index c = 0; c < m / 3; ++c) g[3 * c + kT] = g[3 * c + kB] = rho_t_[c], g[3 * c + kN] = p_.h * rho_n_[c];
+  kappa_ = 0;
+  for (Eigen::Index j = 0; j < m; ++j) kappa_ = std::max(kappa_, hW_.col(j).cwiseAbs().dot(g));
+  return true;
+}
+
+PetscReal LocalContactSolver::DriftBound(CRef r, PetscReal change) const
+{
+  const Eigen::Index nc     = rho_n_.size();
+  PetscReal          rn_sum = 0;
+  for (Eigen::Index c = 0; c < nc; ++c) rn_sum += r[3 * c + kN];
+  const PetscReal u = std::ldexp(1.0, -24);
+  return 2 * (1 + p_.mu) * u * kappa_ * ((r - rx_).lpNorm<1>() / (p_.r_ref + rn_sum) + change);
+}
+
 LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
 {
   p_.mu          = cs_->Mu();
@@ -135,11 +167,19 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
   const Eigen::Map<const Eigen::MatrixXd> hW(hW_.data(), sparse_ ? 0 : 3 * nc, sparse_ ? 0 : 3 * nc);
   const MapC                            rho_n(rho_n_.data(), nc), rho_t(rho_t_.data(), nc), speed(speed_.data(), nc);
   Eigen::Map<Eigen::VectorXd>           v(v_.data(), 3 * nc);
+  const Eigen::Map<const Eigen::MatrixXf> hWf(hWf_.data(), hWf_.rows(), hWf_.cols());
+  const bool single = single_ && !fp_symmetric_ && p_.max_it >= 1;
   auto run = [&](const FixedPointParams &p) {
-    return sparse_ ? ContactPasses(p, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_) : ContactPasses(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+    if (sparse_) return ContactPasses(p, hWs_, rho_n_, rho_t_, speed_, w_f, gap0, r, v_);
+    if (!single) return ContactPasses(p, hW, rho_n, rho_t, speed, w_f, gap0, r, v);
+    if (!p.v_current) v.noalias() = w_f + hW * r, rx_ = r; // the float passes only update v
+    FixedPointParams ps = p;
+    ps.v_current        = true;
+    ps.tol              = -1; // DriftBound's test instead
+    return ContactPasses(ps, hWf, rho_n, rho_t, speed, w_f, gap0, r, v);
   };
   if (fp_symmetric_ && !sparse_ && p_.max_it >= 1) return SymmetricSweeps(w_f, gap0, r);
-  if (fp_anderson_ == 0 || p_.max_it < 1) return run(p_);
+  if ((fp_anderson_ == 0 && !single) || p_.max_it < 1) return run(p_);
   // One pass at a time, each from the mixed point of the last ones (SetFixedPointAnderson).
   FixedPointParams p1 = p_;
   p1.max_it           = 1;
@@ -147,10 +187,24 @@ LocalSolveInfo LocalContactSolver::Passes(CRef w_f, CRef gap0, Ref r)
   LocalSolveInfo info;
   a_n_ = 0;
   for (PetscInt it = 1; it <= p_.max_it; ++it) {
-    rin_         = r;
+    if (fp_anderson_ > 0) rin_ = r;
     p1.v_current = it > 1;
     info         = run(p1);
+    if (single && !std::isnan(info.residual)) {
+      const PetscReal b = DriftBound(r, info.residual);
+      info.converged    = info.residual + b <= p_.tol;
+      if (!info.converged && b > 0.5 * std::max(info.residual, p_.tol)) {
+        // v again with the double h W; the history's v by the same shift (linear in r).
+        vx_.noalias() = w_f + hW * r;
+        vx_ -= v_;
+        v_ += vx_;
+        if (a_n_ > 0) a_v_.colwise() += vx_;
+        rx_ = r;
+        ++refreshes_;
+      }
+    }
     if (info.converged || std::isnan(info.residual)) return {it, info.residual, info.converged};
+    if (fp_anderson_ == 0) continue;
     // A pass that changed r more than the last one: the history no longer describes the map.
     if (info.residual > last) a_n_ = 0;
     last                 = info.residual;

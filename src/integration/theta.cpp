@@ -256,10 +256,17 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                              "Fixed point on a dense W (run-time-sized steps): symmetric Gauss-Seidel sweeps, each reading half of W, "
                              "unmixed, instead of forward passes (iterations then count sweeps)",
                              "LocalContactSolver::SetFixedPointSymmetric", fp_symmetric_, &fp_symmetric_, nullptr));
+  PetscCall(PetscOptionsInt("-fp_single",
+                            "Fixed point on a dense W (forward passes): from this many contact unknowns (3 n_c) the passes read h W "
+                            "rounded to float, v kept in double and remade with the double h W often enough that the solve passes "
+                            "the same stopping test (0: never)",
+                            "LocalContactSolver::SetFixedPointSingle", fp_single_, &fp_single_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
   PetscCheck(fp_anderson_ >= 0 && fp_anderson_ <= 8, comm_, kErrInput, "option -%sfp_anderson = %" PetscInt_FMT ": expected 0 to 8",
              prefix_.c_str(), fp_anderson_);
+  PetscCheck(fp_single_ >= 0, comm_, kErrInput, "option -%sfp_single = %" PetscInt_FMT ": expected a number of contact unknowns >= 0 (0: never)",
+             prefix_.c_str(), fp_single_);
   PetscCheck(contact_predict_ >= 0 && contact_predict_ <= 2, comm_, kErrInput, "option -%scontact_predict %" PetscInt_FMT ": expected 0, 1 or 2",
              prefix_.c_str(), contact_predict_);
   PetscCall(SetContactSolver(csolvers[contact_solver_], ssn_max_it_, ssn_anderson_));
@@ -398,6 +405,7 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   local_.SetFixedPointAnderson(fp_anderson_);
   local_.SetFixedPointSymmetric(fp_symmetric_);
   if (dense_) SetUpKernel();
+  local_.SetFixedPointSingle(FixedSizeKernel() ? 0 : fp_single_); // the compile-time-sized kernels' passes are in double
   PetscCall(PetscLogEventEnd(ev, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
@@ -769,8 +777,8 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
                                      local_.NewtonSolves() ? (double)local_.NewtonSteps() / local_.NewtonSolves() : 0.0,
                                      local_.NewtonSolves() ? (double)local_.Factorisations() / local_.NewtonSolves() : 0.0, local_.Fallbacks()));
   else if (nc_ > 0)
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  contact solver: fixed point (-%scontact_solver %s)\n", prefix_.c_str(),
-                                     contact_solver_ == 0 ? "fp" : "auto"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  contact solver: fixed point (-%scontact_solver %s)%s\n", prefix_.c_str(),
+                                     contact_solver_ == 0 ? "fp" : "auto", local_.FixedPointSingle() ? ", h W read in float" : ""));
   if (!dense_ && nc_ > 0) {
     if (sparse_w_)
       PetscCall(PetscViewerASCIIPrintf(viewer,

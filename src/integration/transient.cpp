@@ -458,6 +458,7 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   const PetscInt fp_total = c.fp_total, nan_step = c.nan_step;
   book.Cut();
   res.summary.mean_fp_iterations = res.steps ? (PetscReal)fp_total / res.steps : 0;
+  if (ti.Contact().FixedPointSingle()) res.summary.fp_refreshes = res.steps ? (PetscReal)ti.Contact().Refreshes() / res.steps : 0;
   if (rank == 0 && !res.streamed) Summarise(res, settle_tol, settle_periods);
   res.complete = !ierr && nan_step < 0 && res.steps == nsteps;
   PetscCall(ierr);
@@ -557,6 +558,9 @@ PetscErrorCode TransientAnalysis::View(const TransientResult &res, PetscViewer v
                                      (double)s.mean_fp_iterations, s.fp_capped, s.first_capped_step,
                                      (double)s.first_capped_residual));
   else PetscCall(PetscViewerASCIIPrintf(viewer, "mean fixed-point passes per step %.2f\n", (double)s.mean_fp_iterations));
+  if (s.fp_refreshes >= 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  passes on h W in float (-theta_fp_single): %.2f products with the double h W per step besides the first\n",
+                                     (double)s.fp_refreshes));
   PetscCall(PetscViewerASCIIPrintf(viewer, "energy balance defect %.2e of max energy\n", (double)s.energy_defect));
   PetscCall(PetscViewerASCIIPopTab(viewer));
   PetscFunctionReturn(0);

@@ -418,6 +418,77 @@ TEST(LocalSolver, MixedPassesWhereGaussSeidelIsSlow)
   }
 }
 
+// SetFixedPointSingle: the passes read h W rounded to float. On every state (open, stick, slip, each
+// law), mixed and plain, from zero and from a start 1e-3 off the solution, at the transient's 1e-12:
+// the constructed solution; the double passes' reactions; the velocity left for the caller is
+// w_f + h W r of the result with the double W; and the result passes the double passes' stopping test
+// (one exact pass from it changes it by at most the tolerance), which on this W needs products with
+// the double h W during the solves. Not taken on a sparse W, below the size asked, or on entries
+// float cannot hold.
+TEST(LocalSolver, PassesOnAFloatWSolveWhatTheDoublePassesSolve)
+{
+  std::mt19937 gen(31);
+  const double          h  = 1e-4, tol = 1e-12;
+  const PetscInt        nc = 30, m = 3 * nc;
+  const Eigen::MatrixXd W  = CoupledW(m, gen);
+  std::normal_distribution<double> noise(0, 1);
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
+    SCOPED_TRACE(FrictionLawName(law));
+    const ContactSet cs = MakeSet(nc, 0.3, law, gen);
+    PetscInt         refreshes = 0;
+    for (int k = 0; k < 6; ++k) {
+      std::vector<State> states(nc);
+      for (PetscInt c = 0; c < nc; ++c) states[c] = c % 5 == k % 5 ? State((c + k) % 3) : kSlipS;
+      const Problem pb = Construct(cs, W, h, states, gen);
+      Eigen::VectorXd near = pb.r;
+      for (auto &x : near) x *= 1 + 1e-3 * noise(gen);
+      for (PetscInt depth : {0, 5})
+        for (int start = 0; start < 2; ++start) {
+          SCOPED_TRACE("problem " + std::to_string(k) + ", mixing depth " + std::to_string(depth) + (start ? ", start near" : ", start 0"));
+          Eigen::VectorXd r[2];
+          for (int j = 0; j < 2; ++j) { // double, float
+            LocalContactSolver ls;
+            ls.Setup(cs, W, h, 1.0);
+            ls.SetTolerances(tol, 100000, 1.0);
+            ls.SetFixedPointAnderson(depth);
+            ASSERT_EQ(ls.SetFixedPointSingle(j ? m : 0), j == 1);
+            r[j]                      = start ? near : Eigen::VectorXd::Zero(m);
+            const LocalSolveInfo info = ls.Solve(pb.w_f, pb.gap0, r[j]);
+            ASSERT_TRUE(info.converged);
+            EXPECT_LE(info.residual, tol);
+            EXPECT_LT(RelErr(r[j], pb.r), 1e-9);
+            const Eigen::VectorXd v = pb.w_f + h * W * r[j];
+            EXPECT_LT((ls.Velocity() - v).norm(), 1e-13 * v.norm());
+            if (j == 0) continue;
+            refreshes += ls.Refreshes();
+            LocalContactSolver exact; // one double pass from the result
+            exact.Setup(cs, W, h, 1.0);
+            exact.SetTolerances(tol, 1, 1.0);
+            Eigen::VectorXd      r1  = r[1];
+            const LocalSolveInfo one = exact.Solve(pb.w_f, pb.gap0, r1);
+            EXPECT_LE(one.residual, tol);
+          }
+          EXPECT_LT(RelErr(r[1], r[0]), 1e-11);
+        }
+    }
+    PetscPrintf(PETSC_COMM_WORLD, "%s, 24 solves on a strongly coupled W with h W in float: %" PetscInt_FMT " products with the double h W besides the first\n",
+                FrictionLawName(law), refreshes);
+    EXPECT_GT(refreshes, 0);
+  }
+  const ContactSet   cs = MakeSet(nc, 0.3, FrictionLaw::Planar, gen);
+  LocalContactSolver ls;
+  ls.Setup(cs, W, h, 1.0);
+  EXPECT_FALSE(ls.SetFixedPointSingle(m + 1));
+  EXPECT_FALSE(ls.SetFixedPointSingle(0));
+  EXPECT_TRUE(ls.SetFixedPointSingle(m));
+  ls.Setup(cs, W, h, 1.0); // a new Setup drops it
+  EXPECT_FALSE(ls.FixedPointSingle());
+  ls.Setup(cs, Eigen::MatrixXd(1e36 * W), h, 1.0);
+  EXPECT_FALSE(ls.SetFixedPointSingle(1));
+  ls.Setup(cs, Eigen::SparseMatrix<PetscReal>(W.sparseView()), h, 1.0);
+  EXPECT_FALSE(ls.SetFixedPointSingle(1));
+}
+
 // SetFixedPointSymmetric: symmetric Gauss-Seidel sweeps, each reading half of W. On every state
 // (open, stick, slip, each law) against the constructed solution and the forward passes; the
 // velocity left for the caller (Velocity()) is w_f + h W r of the result, whether the last sweep ran
@@ -506,13 +577,14 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     SlidingEquilibrium eq;
     ASSERT_EQ(eqs.Solve(model, eq), 0);
     const PetscInt nc = model.contacts.Size(), N = model.Size();
-    test::Integration run[3]; // fp, ssn, fp in symmetric sweeps
-    for (int k = 0; k < 3; ++k) {
+    test::Integration run[4]; // fp, ssn, fp in symmetric sweeps, fp on h W in float
+    for (int k = 0; k < 4; ++k) {
       ASSERT_EQ(run[k].ti.SetFromOptions(), 0);
       ASSERT_EQ(run[k].ti.SetDenseMax(cse.dense_max), 0);
       ASSERT_EQ(run[k].ti.SetDelassusMax(cse.delassus_max, 0.0), 0);
       ASSERT_EQ(run[k].ti.SetContactSolver(k == 1 ? "ssn" : "fp", 30), 0);
       run[k].ti.SetFixedPointSymmetric(k == 2 ? PETSC_TRUE : PETSC_FALSE);
+      run[k].ti.SetFixedPointSingle(k == 3 ? 1 : 0);
       ASSERT_EQ(run[k].ti.SetUp(model, 1e-5), 0);
       ASSERT_EQ(VecDuplicate(eq.U, &run[k].U), 0);
       ASSERT_EQ(VecCopy(eq.U, run[k].U), 0);
@@ -539,13 +611,13 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     ASSERT_FALSE(run[1].ti.FixedSizeKernel());
     ASSERT_EQ(run[0].ti.SparseDelassus(), run[1].ti.SparseDelassus());
     const PetscInt steps = 3000;
-    double         maxdiff = 0, scale = 0, maxdiff_sym = 0;
-    long           its[3] = {0, 0, 0};
+    double         maxdiff = 0, scale = 0, maxdiff_sym = 0, maxdiff_single = 0;
+    long           its[4] = {0, 0, 0, 0};
     int            seen[3] = {0, 0, 0};
     std::vector<int> status;
     for (PetscInt i = 0; i < steps; ++i) {
-      StepInfo info[3];
-      for (int k = 0; k < 3; ++k) {
+      StepInfo info[4];
+      for (int k = 0; k < 4; ++k) {
         ASSERT_EQ(run[k].ti.Step(run[k].U, run[k].dU, run[k].r, &info[k]), 0);
         ASSERT_TRUE(info[k].contact.converged);
         its[k] += info[k].contact.iterations;
@@ -553,6 +625,7 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
       const Eigen::VectorXd a = test::ToDense(run[0].dU), b = test::ToDense(run[1].dU);
       maxdiff = std::max(maxdiff, (a - b).lpNorm<Eigen::Infinity>());
       maxdiff_sym = std::max(maxdiff_sym, (a - test::ToDense(run[2].dU)).lpNorm<Eigen::Infinity>());
+      maxdiff_single = std::max(maxdiff_single, (a - test::ToDense(run[3].dU)).lpNorm<Eigen::Infinity>());
       scale   = std::max(scale, a.lpNorm<Eigen::Infinity>());
       run[0].ti.Contact().Status(run[0].r, status);
       for (int s : status) ++seen[s];
@@ -560,6 +633,10 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     EXPECT_LT(maxdiff, 1e-9 * scale) << "chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
     EXPECT_LT(maxdiff_sym, 1e-9 * scale) << "symmetric sweeps: chain " << cse.chain << " V " << cse.V << " dense_max " << cse.dense_max;
     // The sweeps run where W is dense and the kernel run-time-sized: the 6-cell chain on the dense back end.
+    // The float passes run on a dense W on run-time sizes: the chain but on a sparse W. The states
+    // are those of the double passes to the fixed point's tolerance.
+    EXPECT_EQ(run[3].ti.Contact().FixedPointSingle(), cse.chain && cse.delassus_max != 0);
+    EXPECT_LT(maxdiff_single, 1e-11 * scale) << "h W in float: chain " << cse.chain << " dense_max " << cse.dense_max;
     if (cse.chain && cse.dense_max) {
       EXPECT_NE(its[2], its[0]);
     }
@@ -567,11 +644,11 @@ TEST(LocalSolver, ThetaSsnMatchesFixedPoint)
     EXPECT_EQ(run[1].ti.Contact().Fallbacks(), 0);
     PetscPrintf(PETSC_COMM_WORLD,
                 "%s%s: open/stick/slip %d/%d/%d, iterations per step fp %.2f ssn %.2f (Newton %.2f, %d factorisations, fallbacks %d), "
-                "largest |dU| difference %.2e of %.2e; symmetric sweeps %.2f per step, %.2e\n",
+                "largest |dU| difference %.2e of %.2e; symmetric sweeps %.2f per step, %.2e; h W in float %.2f per step, %.2e\n",
                 cse.chain ? "chain 6" : "3-DOF", cse.chain ? (cse.dense_max ? " dense" : cse.delassus_max ? " sparse, dense W" : " sparse W") : (cse.V > 1 ? " case 1" : " case 2"),
                 seen[0], seen[1], seen[2], (double)its[0] / steps, (double)its[1] / steps,
                 (double)run[1].ti.Contact().NewtonSteps() / steps, (int)run[1].ti.Contact().Factorisations(),
-                (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale, (double)its[2] / steps, maxdiff_sym);
+                (int)run[1].ti.Contact().Fallbacks(), maxdiff, scale, (double)its[2] / steps, maxdiff_sym, (double)its[3] / steps, maxdiff_single);
   }
 }
 

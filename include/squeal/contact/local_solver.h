@@ -47,6 +47,9 @@
 #include <algorithm>
 #include <cmath>
 #include <type_traits>
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 #include <vector>
 
 namespace squeal {
@@ -84,6 +87,26 @@ EIGEN_ALWAYS_INLINE void AddColumns(const Eigen::SparseMatrix<PetscReal> &hW, Ei
     for (Eigen::SparseMatrix<PetscReal>::InnerIterator it(hW, o + j[k]); it; ++it) v[it.index()] += it.value() * d[k];
 }
 
+// v += w0 d0 + w1 d1 + w2 d2 with the columns w in float and v, d in double (SetFixedPointSingle):
+// each column element is widened to double before its product, so the only rounding against the
+// double columns is that of W's entries to float.
+EIGEN_ALWAYS_INLINE void AddColumnsSingle(Eigen::Index n, const float *w0, const float *w1, const float *w2, PetscReal d0, PetscReal d1,
+                                          PetscReal d2, PetscReal *v)
+{
+  Eigen::Index i = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+  const __m256d a0 = _mm256_set1_pd(d0), a1 = _mm256_set1_pd(d1), a2 = _mm256_set1_pd(d2);
+  for (; i + 4 <= n; i += 4) {
+    __m256d x = _mm256_loadu_pd(v + i);
+    x         = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(w0 + i)), a0, x);
+    x         = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(w1 + i)), a1, x);
+    x         = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(w2 + i)), a2, x);
+    _mm256_storeu_pd(v + i, x);
+  }
+#endif
+  for (; i < n; ++i) v[i] += PetscReal(w0[i]) * d0 + PetscReal(w1[i]) * d1 + PetscReal(w2[i]) * d2;
+}
+
 // (r_t, r_b) onto the friction set of radius a: the disc (planar) or [-a, a] x {0} (rectilinear).
 // Shared by the fixed point and the semi-smooth Newton's residual, so that both solve one problem.
 // Inline: |(r_t, r_b)| by core/hypot.h's Hypot (libm's number without the call), else std::hypot.
@@ -106,14 +129,17 @@ EIGEN_ALWAYS_INLINE void ProjectFriction(bool rectilinear, PetscReal a, PetscRea
 // The fixed-point passes on any Eigen storage (dynamic or fixed size): hW = h W (3 n_c square),
 // rho_n, rho_t, speed, gap0 per point, w_f and r per local row; v = w_f + h W r on return.
 // Always inlined: on fixed sizes r and v then stay in registers across the passes.
+// A float hW (SetFixedPointSingle) only updates v: the caller gives v (p.v_current).
 template <bool Rectilinear, class MatW, class VecC, class VecG, class VecF, class VecR, class VecV>
 EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPassesLaw(const FixedPointParams &p, const MatW &hW, const VecC &rho_n, const VecC &rho_t,
                                                     const VecC &speed, const VecF &w_f, const VecG &gap0, VecR &r, VecV &v)
 {
-  constexpr bool     kFixed = MatW::SizeAtCompileTime != Eigen::Dynamic;
+  constexpr bool     kFixed  = MatW::SizeAtCompileTime != Eigen::Dynamic;
+  constexpr bool     kSingle = std::is_same_v<typename MatW::Scalar, float>;
   const Eigen::Index nc     = rho_n.size();
   PetscReal          residual = 0; // a local, not info's member: stays in a register across the passes
-  if (kFixed || !p.v_current) v.noalias() = w_f + hW * r; // the fixed-size kernels never mix passes
+  if constexpr (!kSingle)
+    if (kFixed || !p.v_current) v.noalias() = w_f + hW * r; // the fixed-size kernels never mix passes
   for (PetscInt it = 1; it <= p.max_it; ++it) {
     PetscReal change = 0, rn_sum = 0;
     for (Eigen::Index c = 0; c < nc; ++c) {
@@ -140,6 +166,7 @@ EIGEN_ALWAYS_INLINE LocalSolveInfo ContactPassesLaw(const FixedPointParams &p, c
       // where adding hW times zeros (v unchanged) costs less than the test.
       if (kFixed || (dt != 0) | (db != 0) | (dn != 0)) {
         if constexpr (std::is_base_of_v<Eigen::SparseMatrixBase<MatW>, MatW>) AddColumns(hW, o, dt, db, dn, v);
+        else if constexpr (kSingle) AddColumnsSingle(v.size(), hW.col(o + kT).data(), hW.col(o + kB).data(), hW.col(o + kN).data(), dt, db, dn, v.data());
         else v.noalias() += hW.col(o + kT) * dt + hW.col(o + kB) * db + hW.col(o + kN) * dn;
         r[o + kT] = rt;
         r[o + kB] = rb;
@@ -212,6 +239,20 @@ public:
   // Iterations then count sweeps.
   void SetFixedPointSymmetric(bool on) { fp_symmetric_ = on; }
   bool FixedPointSymmetric() const { return fp_symmetric_; }
+  // Dense W on run-time sizes, forward passes: the passes' updates of v read h W rounded to float,
+  // half the memory a pass streams (a large W outgrows the caches: on 651 points, 1953^2 doubles
+  // are 30 MB, and a pass then costs 3 times a float one, docs/records.md). v is still kept and
+  // summed in double, and, being linear in r, is exactly v(r) + E (r - r_x), E = float(h W) - h W
+  // (|E_ij| <= 2^-24 |h W_ij|), r_x the reactions of the last product with the double h W. That
+  // error changes a pass's output by at most b = 2 (1 + mu) 2^-24 kappa (||r - r_x||_1 + the pass's
+  // change), kappa the largest column sum of |h W| weighted by each row's rho (rho_t, h rho_n): the
+  // projections are non-expansive. A pass then stops the solve when its change plus b is below the
+  // tolerance, so the result passes the double passes' stopping test; and when b reaches half the
+  // change, v is made again with the double h W (r_x = r; the mixing history follows by linearity).
+  // Taken from min_unknowns local unknowns (3 n_c; 0: never); after Setup. Returns whether taken.
+  bool SetFixedPointSingle(PetscInt min_unknowns);
+  bool FixedPointSingle() const { return single_; }
+  PetscInt Refreshes() const { return refreshes_; } // products with the double h W made to bound E's error (since SetFixedPointSingle)
   PetscInt Predictor() const { return predict_; }
   // Counters since Setup: Newton solves, of which fell back to the fixed point, and Newton steps.
   PetscInt NewtonSolves() const { return newton_solves_; }
@@ -330,6 +371,13 @@ private:
   Eigen::VectorXd sw_s_, sw_t_; // SymmetricSweeps' sums over the points before and after each point
   LocalSolveInfo  SymmetricSweeps(CRef w_f, CRef gap0, Ref r);
   Eigen::VectorXd rin_; // the fixed point with mixing: the start of the current pass
+  // SetFixedPointSingle: h W in float, kappa, r_x and a work vector
+  bool            single_ = false;
+  Eigen::MatrixXf hWf_;
+  PetscReal       kappa_ = 0;
+  PetscInt        refreshes_ = 0;
+  Eigen::VectorXd rx_, vx_;
+  PetscReal       DriftBound(CRef r, PetscReal change) const; // b of SetFixedPointSingle
   Eigen::Matrix<PetscReal, 3, Eigen::Dynamic> g_, gd_; // per point (3 x 3 blocks side by side): G_c, G_c D_c
   Eigen::MatrixXd                       J_;            // dense W
   Eigen::PartialPivLU<Eigen::MatrixXd>  lu_;

@@ -59,6 +59,7 @@ public:
   PetscErrorCode SetFixedPoint(PetscReal tol, PetscInt max_it); // also for the steps after it, without a new SetUp
   PetscReal      FixedPointTolerance() const { return fp_tol_; }
   void           SetFixedPointSymmetric(PetscBool on) { fp_symmetric_ = on; } // -theta_fp_symmetric; at the next SetUp
+  void           SetFixedPointSingle(PetscInt min_unknowns) { fp_single_ = min_unknowns; } // -theta_fp_single; at the next SetUp
   PetscInt       FixedPointMaxIt() const { return fp_max_it_; }
   PetscErrorCode SetRhoScale(PetscReal s);
   PetscErrorCode SetDenseMax(PetscInt n); // PETSC_DECIDE: from the model (DefaultDense)
@@ -184,6 +185,7 @@ private:
   PetscInt     ssn_anderson_ = 5;                    // -theta_ssn_anderson: depth of the mixing of Newton's chord steps
   PetscInt     fp_anderson_ = 5;                     // -theta_fp_anderson: depth of the mixing of the fixed point's passes
   PetscBool    fp_symmetric_ = PETSC_FALSE;          // -theta_fp_symmetric: symmetric Gauss-Seidel sweeps (dense W, run-time sizes)
+  PetscInt     fp_single_ = 512;                     // -theta_fp_single: passes read h W in float from this many 3 n_c
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;

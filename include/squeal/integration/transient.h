@@ -59,6 +59,7 @@ struct TransientSummary {
   std::vector<PetscReal> peak_to_peak;   // per DOF, over the last 20 % of the run (extrema refined between records)
   PetscReal              frac_separated = 0, frac_stuck = 0, frac_sliding = 0; // over the last 20 %, all points
   PetscReal              mean_fp_iterations = 0;
+  PetscReal              fp_refreshes = -1; // h W read in float: v remade with the double h W, per step (-1: double passes)
   PetscInt               fp_capped = 0, first_capped_step = -1;
   PetscReal              first_capped_residual = 0;
   PetscReal              energy_defect = 0; // max |balance| / max E over the run
