@@ -214,7 +214,9 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       transient.h = h, transient.t_final = (PetscReal)steps * h;
       transient.on_record_bytes = (PetscReal)(3 + 2 * modes_re.size() + 1) * sizeof(PetscReal);
     }
+    const double chunk_start = MPI_Wtime();
     PetscCall(transient.Run(model, eq, stab, ti, tr));
+    const double chunk_seconds = MPI_Wtime() - chunk_start;
     // Stopped by a signal (the transient leaves on nothing else without an error): the records so
     // far, this chunk's too, are analysed, and complete stays false.
     const bool         stopped = !tr.complete;
@@ -284,9 +286,9 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       std::snprintf(nr, sizeof nr, "; normal reaction's +- %.1f %%, drift %.1f %%", 100 * (double)res.normal.rel_halfwidth,
                     100 * (double)res.normal.drift);
     PetscCall(PetscPrintf(comm_,
-                          "steady state: chunk %" PetscInt_FMT ", %.0f periods (t = %.4g s): RMS of DOF %" PetscInt_FMT
+                          "steady state: chunk %" PetscInt_FMT ", %.0f periods (t = %.4g s; %.3g s, %.1f contact passes a step): RMS of DOF %" PetscInt_FMT
                           " %.4e +- %.1f %%, drift %.1f %%%s: %s\n",
-                          k + 1, (double)res.periods, (double)elapsed, res.dof, (double)L.rms, 100 * (double)L.rel_halfwidth,
+                          k + 1, (double)res.periods, (double)elapsed, chunk_seconds, (double)tr.summary.mean_fp_iterations, res.dof, (double)L.rms, 100 * (double)L.rel_halfwidth,
                           100 * (double)L.drift, nr,
                           res.converged ? "converged" : (last ? "budget reached" : "running on")));
     if (monitor_) {
