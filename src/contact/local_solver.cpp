@@ -129,7 +129,7 @@ void LocalContactSolver::SizeAnderson()
 bool LocalContactSolver::SetFixedPointSingle(PetscInt min_unknowns)
 {
   const Eigen::Index m = hW_.rows();
-  single_              = !sparse_ && min_unknowns > 0 && m >= min_unknowns;
+  single_              = !sparse_ && !fp_symmetric_ && min_unknowns > 0 && m >= min_unknowns;
   // Entries beyond float's range (or not finite) would not round to within 2^-24 of themselves.
   if (single_) single_ = hW_.allFinite() && hW_.cwiseAbs().maxCoeff() < 1e30;
   refreshes_ = 0;
@@ -139,11 +139,13 @@ bool LocalContactSolver::SetFixedPointSingle(PetscInt min_unknowns)
   }
   hWf_ = hW_.cast<float>();
   rx_.setZero(m), vx_.setZero(m);
-  // kappa = max_j sum_i g_i |h W_ij|, g_i the factor from row i's velocity to its reaction.
+  // kappa = max_j sum_i g_i (|h W_ij| + 2^-126), g_i the factor from row i's velocity to its
+  // reaction: below float's normal range an entry rounds to within 2^-150 (absolute), not 2^-24 of it.
   Eigen::VectorXd g(m);
   for (Eigen::Index c = 0; c < m / 3; ++c) g[3 * c + kT] = g[3 * c + kB] = rho_t_[c], g[3 * c + kN] = p_.h * rho_n_[c];
-  kappa_ = 0;
-  for (Eigen::Index j = 0; j < m; ++j) kappa_ = std::max(kappa_, hW_.col(j).cwiseAbs().dot(g));
+  const PetscReal floor = std::ldexp(1.0, -126) * g.sum();
+  kappa_                = 0;
+  for (Eigen::Index j = 0; j < m; ++j) kappa_ = std::max(kappa_, hW_.col(j).cwiseAbs().dot(g) + floor);
   return true;
 }
 

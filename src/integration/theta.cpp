@@ -405,7 +405,8 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   local_.SetFixedPointAnderson(fp_anderson_);
   local_.SetFixedPointSymmetric(fp_symmetric_);
   if (dense_) SetUpKernel();
-  local_.SetFixedPointSingle(FixedSizeKernel() ? 0 : fp_single_); // the compile-time-sized kernels' passes are in double
+  // The compile-time-sized kernels' passes are in double; Newton (ssn) runs a pass or two a solve.
+  local_.SetFixedPointSingle(FixedSizeKernel() || ssn ? 0 : fp_single_);
   PetscCall(PetscLogEventEnd(ev, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }

@@ -485,6 +485,9 @@ TEST(LocalSolver, PassesOnAFloatWSolveWhatTheDoublePassesSolve)
   EXPECT_FALSE(ls.FixedPointSingle());
   ls.Setup(cs, Eigen::MatrixXd(1e36 * W), h, 1.0);
   EXPECT_FALSE(ls.SetFixedPointSingle(1));
+  ls.Setup(cs, W, h, 1.0);
+  ls.SetFixedPointSymmetric(true); // the sweeps read the double W
+  EXPECT_FALSE(ls.SetFixedPointSingle(1));
   ls.Setup(cs, Eigen::SparseMatrix<PetscReal>(W.sparseView()), h, 1.0);
   EXPECT_FALSE(ls.SetFixedPointSingle(1));
 }
