@@ -71,6 +71,13 @@ PetscErrorCode WriteExpandedOrbit(const Model &model, const ShootingResult &res,
   if (!s) PetscFunctionReturn(0);
   PetscCall(WriteExpandedRows(*x, "/expanded/orbit", res.orbit_t.data(), res.orbit_U.data(), res.orbit_U.size() / (size_t)x->n, s,
                               "[sample][full DOF], one period of /shooting/orbit", out));
+  // The cycle's start (U, dU) on the full model, /shooting/Z0 expanded: the full model's transient
+  // starts there with -transient_start (the check of a reduced cycle against the full model).
+  std::vector<PetscReal> Z;
+  if (res.Z0.size() == 2 * (size_t)x->n) PetscCallCXX(x->Apply(res.Z0.data(), 2, Z));
+  else Z.assign(2 * (size_t)x->full_size, 0.0); // not rank 0: nothing is read there
+  PetscCall(out.WriteArray("/expanded/Z0", {2 * (hsize_t)x->full_size}, Z.data()));
+  PetscCall(out.WriteAttribute("/expanded/Z0", "layout", "(U, dU) on the full model's DOFs: /shooting/Z0 expanded"));
   PetscFunctionReturn(0);
 }
 

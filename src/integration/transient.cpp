@@ -54,6 +54,25 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
                                   buf, &nd, nullptr));
   if (help) nd = 0;
   du0.assign(buf, buf + nd);
+  {
+    char buf_file[PETSC_MAX_PATH_LEN] = "";
+    PetscBool set = PETSC_FALSE;
+    PetscCall(PetscOptionsString("-start",
+                                 "Start from a state in a squeal results file (.h5): a transient's last record (go on from it), a "
+                                 "shooting cycle's Z0, the reduced cycle's Z0 expanded to the full model (/expanded/Z0: the full model "
+                                 "from the reduced cycle), the energy estimate's Z0; replaces the mode start",
+                                 "TransientAnalysis", start_file.c_str(), buf_file, sizeof buf_file, &set));
+    if (set) start_file = buf_file;
+    const char *const froms[] = {"auto", "transient", "shooting", "expanded", "energy"};
+    PetscInt          from    = 0;
+    for (PetscInt i = 0; i < 5; ++i)
+      if (start_from == froms[i]) from = i;
+    PetscCall(PetscOptionsEList("-start_from",
+                                "Which state of -transient_start's file (auto: the first of transient, shooting, expanded, energy "
+                                "with the model's number of DOFs)",
+                                "TransientAnalysis", froms, 5, froms[from], &from, nullptr));
+    start_from = froms[from];
+  }
   PetscCall(PetscOptionsInt("-monitor", "Print a monitor line every k steps (0: never)", "TransientAnalysis", monitor, &monitor,
                             nullptr));
   PetscCall(PetscOptionsBool("-progress", "Progress line with ETA on stderr (default: when stderr is a terminal)",
@@ -70,7 +89,78 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
   PetscCheck(settle_periods >= 2, comm_, kErrInput, "option -transient_settle_periods = %" PetscInt_FMT ": expected >= 2", settle_periods);
   for (PetscReal x : u0) PetscCheck(std::isfinite(x), comm_, kErrInput, "option -transient_u0 has a NaN or infinite entry");
   for (PetscReal x : du0) PetscCheck(std::isfinite(x), comm_, kErrInput, "option -transient_du0 has a NaN or infinite entry");
+  PetscCheck(start_file.empty() || u0.empty(), comm_, kErrInput, "options -transient_start and -transient_u0 both give the start: keep one");
+  if (!start_file.empty()) {
+    // A missing or foreign file fails here, before any model work.
+    io::H5Reader in;
+    PetscCall(in.Open(comm_, start_file.c_str(), "-transient_start"));
+  }
   PetscFunctionReturn(0);
+}
+
+PetscErrorCode TransientAnalysis::ReadStart(PetscInt N, PetscInt nc, std::vector<PetscReal> &u, std::vector<PetscReal> &du,
+                                            Eigen::VectorXd &r, std::string &what) const
+{
+  io::H5Reader in;
+  PetscFunctionBeginUser;
+  PetscCall(in.Open(comm_, start_file.c_str(), "-transient_start"));
+  // The sources in the order auto tries them; a transient is N values a record, a Z0 2N values.
+  struct Source {
+    const char *from, *dataset;
+  };
+  const Source sources[] = {{"transient", "/transient/U"}, {"shooting", "/shooting/Z0"}, {"expanded", "/expanded/Z0"}, {"energy", "/energy/Z0"}};
+  std::string  seen;
+  for (const Source &src : sources) {
+    if (start_from != "auto" && start_from != src.from) continue;
+    std::vector<hsize_t> dims;
+    PetscCall(in.Dims(src.dataset, dims));
+    if (dims.empty()) continue;
+    const bool   records = std::string(src.from) == "transient";
+    const size_t values  = records ? (dims.size() == 2 ? (size_t)dims[1] : 0) : (dims.size() == 1 ? (size_t)dims[0] / 2 : 0);
+    if (records && dims[0] == 0) {
+      seen += std::string(seen.empty() ? "" : ", ") + src.dataset + " with no record";
+      continue;
+    }
+    if (values != (size_t)N || (!records && dims[0] != 2 * (hsize_t)N)) {
+      char b[160];
+      std::snprintf(b, sizeof b, "%s%s of a %zu-DOF model", seen.empty() ? "" : ", ", src.dataset, values);
+      seen += b;
+      continue;
+    }
+    if (records) {
+      const hsize_t last = dims[0] - 1;
+      PetscCall(in.Read("/transient/U", u, last));
+      PetscCall(in.Read("/transient/V", du, last));
+      std::vector<hsize_t> rd;
+      PetscCall(in.Dims("/transient/R", rd));
+      if (rd.size() == 3 && rd[0] == dims[0] && rd[1] == (hsize_t)nc && rd[2] == 3) {
+        std::vector<PetscReal> rv;
+        PetscCall(in.Read("/transient/R", rv, last));
+        r = Eigen::Map<const Eigen::VectorXd>(rv.data(), 3 * nc);
+      }
+      std::vector<PetscReal> t;
+      PetscCall(in.Read("/transient/t", t, last));
+      char b[200];
+      std::snprintf(b, sizeof b, "the last record of /transient (t = %.9g s, record %llu) of %s", (double)t[0], (unsigned long long)last,
+                    start_file.c_str());
+      what = b;
+    } else {
+      std::vector<PetscReal> z;
+      PetscCall(in.Read(src.dataset, z));
+      u.assign(z.begin(), z.begin() + N);
+      du.assign(z.begin() + N, z.end());
+      what = std::string(src.dataset) + " of " + start_file;
+    }
+    for (PetscReal x : u) PetscCheck(std::isfinite(x), comm_, kErrInput, "-transient_start: %s has a NaN or infinite entry", what.c_str());
+    for (PetscReal x : du) PetscCheck(std::isfinite(x), comm_, kErrInput, "-transient_start: %s has a NaN or infinite entry", what.c_str());
+    if (in.Status() != "complete") what += " (the file's status is not \"complete\")";
+    PetscFunctionReturn(0);
+  }
+  std::string looked;
+  for (const Source &src : sources)
+    if (start_from == "auto" || start_from == src.from) looked += std::string(looked.empty() ? "" : ", ") + src.dataset;
+  SETERRQ(comm_, kErrInput, "-transient_start '%s' has no start state for this model of %" PetscInt_FMT " DOFs (-transient_start_from %s): %s",
+          start_file.c_str(), N, start_from.c_str(), seen.empty() ? ("no " + looked).c_str() : ("it has " + seen).c_str());
 }
 
 namespace {
@@ -409,11 +499,21 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   PetscCall(RecordCount(N, nc, nsteps, res, &records));
   if (rank == 0) book.SizeRecords(records);
 
+  std::vector<PetscReal> su, sdu;
+  Eigen::VectorXd        r = Eigen::VectorXd::Zero(3 * nc); // the contact's warm start
+  for (PetscInt c = 0; c < nc; ++c) {
+    r[3 * c + kT] = model.contacts.Mu() * eq.N[c];
+    r[3 * c + kN] = eq.N[c];
+  }
+  // A caller's u0 (the statistical steady state's chunks after the first) comes before the file.
   if (!u0.empty()) {
     PetscCheck((PetscInt)u0.size() == N, comm_, kErrInput, "option -transient_u0 has %zu values, the model has %" PetscInt_FMT " DOFs",
                u0.size(), N);
     PetscCheck(du0.empty() || (PetscInt)du0.size() == N, comm_, kErrInput,
                "option -transient_du0 has %zu values, the model has %" PetscInt_FMT " DOFs", du0.size(), N);
+  } else if (!start_file.empty()) {
+    PetscCall(ReadStart(N, nc, su, sdu, r, res.start));
+    PetscCall(PetscPrintf(comm_, "transient: start from %s\n", res.start.c_str()));
   } else PetscCheck(m.phi_re, comm_, kErrInput, "transient: mode shapes are needed for the start (-stab_modes)");
   PetscCall(ti.SetUp(model, res.h));
 
@@ -429,14 +529,10 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
     PetscCall(VecDuplicate(eq.U, U.out()));
     PetscCall(VecDuplicate(eq.U, dU.out()));
   }
-  PetscCall(StartState(eq, m, U, dU));
-
-  // Warm start: the steady-sliding reactions.
-  Eigen::VectorXd r = Eigen::VectorXd::Zero(3 * nc);
-  for (PetscInt c = 0; c < nc; ++c) {
-    r[3 * c + kT] = model.contacts.Mu() * eq.N[c];
-    r[3 * c + kN] = eq.N[c];
-  }
+  if (!su.empty()) {
+    PetscCall(SetOwnedRows(su.data(), U));
+    PetscCall(SetOwnedRows(sdu.data(), dU));
+  } else PetscCall(StartState(eq, m, U, dU));
   PetscCall(book.SetUp(model, size == 1 && ti.FixedSizeKernel(), U, dU, size == 1 ? us.data() : nullptr, size == 1 ? dus.data() : nullptr, r));
   StatusOf status_of(model.contacts, ti.Contact());
 
@@ -589,6 +685,7 @@ PetscErrorCode TransientAnalysis::Write(const TransientResult &res, io::H5Writer
   if (res.T_ref > 0) PetscCall(out.WriteAttribute("/transient", "steps_per_period", res.T_ref / res.h));
   PetscCall(out.WriteAttribute("/transient", "keep_every", res.keep_every));
   PetscCall(out.WriteAttribute("/transient", "complete", (PetscInt)res.complete));
+  if (!res.start.empty()) PetscCall(out.WriteAttribute("/transient", "start", res.start.c_str()));
   const TransientSummary &S = res.summary;
   PetscReal summ[15] = {S.period,         S.mean_fp_iterations, S.frac_separated,    S.frac_stuck,        (PetscReal)S.trend,
                         S.amplitude_rate, S.period_change,      (PetscReal)settle_tol, S.return_error,    S.amplitude_change,

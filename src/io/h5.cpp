@@ -386,4 +386,121 @@ PetscErrorCode H5Writer::WriteAttribute(const char *object, const char *name, co
   PetscFunctionReturn(0);
 }
 
+H5Reader::~H5Reader()
+{
+  if (file_ >= 0) H5Fclose(file_);
+}
+
+PetscErrorCode H5Reader::Sync()
+{
+  PetscMPIInt bad = err_.empty() ? 0 : 1;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Bcast(&bad, 1, MPI_INT, 0, comm_));
+  if (bad) {
+    const std::string msg = err_.empty() ? std::string("reading '") + path_ + "' (" + what_ + ") failed on rank 0" : err_;
+    err_.clear();
+    SETERRQ(comm_, PETSC_ERR_FILE_READ, "%s", msg.c_str());
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode H5Reader::Open(MPI_Comm comm, const char *path, const char *what)
+{
+  PetscFunctionBeginUser;
+  if (file_ >= 0) H5Fclose(file_), file_ = -1;
+  comm_ = comm;
+  path_ = path ? path : "";
+  what_ = what ? what : "";
+  PetscCallMPI(MPI_Comm_rank(comm, &rank_));
+  if (rank_ == 0) {
+    QuietHDF5();
+    struct stat st;
+    if (stat(path_.c_str(), &st) != 0) err_ = what_ + " '" + path_ + "': " + std::strerror(errno);
+    else if (S_ISDIR(st.st_mode)) err_ = what_ + " '" + path_ + "' is a directory: expected a squeal results file (.h5)";
+    else if (!H5Writer::IsResultsFile(path_.c_str())) err_ = what_ + " '" + path_ + "' is not a squeal results file (HDF5 written by squeal -output)";
+    else if ((file_ = H5Fopen(path_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT)) < 0) err_ = what_ + " '" + path_ + "': HDF5 cannot open it";
+    else status_ = RootStringAttribute(file_, "status");
+  }
+  PetscCall(Sync());
+  {
+    // Every rank knows the status (a caller may warn that the file is not complete).
+    int n = (int)status_.size();
+    PetscCallMPI(MPI_Bcast(&n, 1, MPI_INT, 0, comm_));
+    status_.resize((size_t)n);
+    if (n) PetscCallMPI(MPI_Bcast(status_.data(), n, MPI_CHAR, 0, comm_));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode H5Reader::Dims(const char *name, std::vector<hsize_t> &dims)
+{
+  int nd = 0;
+  PetscFunctionBeginUser;
+  dims.clear();
+  if (rank_ == 0 && file_ >= 0) {
+    // H5Lexists on "/a/b" needs "/a" to exist: walk the path.
+    const std::string p(name);
+    bool              exists = true;
+    for (size_t k = p.find('/', 1); exists; k = p.find('/', k + 1)) {
+      exists = H5Lexists(file_, p.substr(0, k).c_str(), H5P_DEFAULT) > 0;
+      if (k == std::string::npos) break;
+    }
+    if (exists && H5Oexists_by_name(file_, name, H5P_DEFAULT) > 0) {
+      const hid_t d = H5Dopen2(file_, name, H5P_DEFAULT);
+      const hid_t s = d >= 0 ? H5Dget_space(d) : -1;
+      nd            = s >= 0 ? H5Sget_simple_extent_ndims(s) : -1;
+      if (nd > 0) {
+        dims.resize((size_t)nd);
+        H5Sget_simple_extent_dims(s, dims.data(), nullptr);
+      } else if (nd < 0) err_ = what_ + " '" + path_ + "': " + p + " is not a dataset";
+      if (s >= 0) H5Sclose(s);
+      if (d >= 0) H5Dclose(d);
+      nd = (int)dims.size();
+    }
+  }
+  PetscCall(Sync());
+  PetscCallMPI(MPI_Bcast(&nd, 1, MPI_INT, 0, comm_));
+  dims.resize((size_t)nd);
+  if (nd) PetscCallMPI(MPI_Bcast(dims.data(), nd, MPI_UNSIGNED_LONG_LONG, 0, comm_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode H5Reader::Read(const char *name, std::vector<PetscReal> &data, hsize_t row)
+{
+  std::vector<hsize_t> dims;
+  PetscFunctionBeginUser;
+  PetscCall(Dims(name, dims));
+  PetscCheck(!dims.empty(), comm_, PETSC_ERR_FILE_UNEXPECTED, "%s '%s' has no dataset %s", what_.c_str(), path_.c_str(), name);
+  const bool one = row != (hsize_t)-1;
+  PetscCheck(!one || row < dims[0], comm_, PETSC_ERR_FILE_UNEXPECTED, "%s '%s': %s has %llu rows, not row %llu", what_.c_str(),
+             path_.c_str(), name, (unsigned long long)dims[0], (unsigned long long)row);
+  size_t count = 1;
+  for (size_t i = one ? 1 : 0; i < dims.size(); ++i) count *= (size_t)dims[i];
+  data.assign(count, 0.0);
+  if (rank_ == 0) {
+    const hid_t d = H5Dopen2(file_, name, H5P_DEFAULT);
+    const hid_t t = d >= 0 ? H5Dget_type(d) : -1;
+    if (t < 0 || H5Tget_class(t) != H5T_FLOAT) err_ = what_ + " '" + path_ + "': " + name + " is not an array of reals";
+    else {
+      hid_t fs = H5S_ALL, ms = H5S_ALL;
+      if (one) {
+        std::vector<hsize_t> start(dims.size(), 0), cnt(dims);
+        start[0] = row, cnt[0] = 1;
+        fs       = H5Dget_space(d);
+        H5Sselect_hyperslab(fs, H5S_SELECT_SET, start.data(), nullptr, cnt.data(), nullptr);
+        const hsize_t n = count;
+        ms              = H5Screate_simple(1, &n, nullptr);
+      }
+      if (count && H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, data.data()) < 0)
+        err_ = what_ + " '" + path_ + "': HDF5 failed to read " + name;
+      if (one) H5Sclose(fs), H5Sclose(ms);
+    }
+    if (t >= 0) H5Tclose(t);
+    if (d >= 0) H5Dclose(d);
+  }
+  PetscCall(Sync());
+  if (count) PetscCallMPI(MPI_Bcast(data.data(), (int)count, MPIU_REAL, 0, comm_));
+  PetscFunctionReturn(0);
+}
+
 } // namespace squeal::io

@@ -91,6 +91,7 @@ using RecordVector = std::vector<T, RecordAllocator<T>>;
 
 struct TransientResult {
   PetscReal               h = 0, theta = 0, T_ref = 0;
+  std::string             start; // -transient_start: the state the run started from, else empty
   PetscInt                steps = 0, N = 0, nc = 0, keep_every = 1;
   PetscInt                steps_planned = 0; // the run's step count (steps: those done)
   RecordVector<PetscReal> t, U, V, R, energy; // energy: [E, W_damping, W_reactions, W_load] per record
@@ -119,8 +120,8 @@ public:
   explicit TransientAnalysis(MPI_Comm comm) : comm_(comm) {}
   // -transient_periods, -transient_t_final, -transient_steps_per_period, -transient_h,
   // -transient_keep_every, -transient_amplitude, -transient_mode, -transient_u0, -transient_du0,
-  // -transient_monitor, -transient_progress, -transient_settle_tol, -transient_settle_periods,
-  // -transient_max_memory.
+  // -transient_start, -transient_start_from, -transient_monitor, -transient_progress,
+  // -transient_settle_tol, -transient_settle_periods, -transient_max_memory.
   PetscErrorCode SetFromOptions();
   // Runs; on failure (NaN, solver error) res holds everything recorded so far.
   PetscErrorCode Run(const Model &model, const SlidingEquilibrium &eq, const StabilityResult &stab, ThetaIntegrator &ti,
@@ -144,6 +145,9 @@ public:
   PetscBool steps_given    = PETSC_FALSE; // -transient_steps_per_period or -transient_h on the command line or in the scene
   PetscBool progress = PETSC_FALSE, progress_set = PETSC_FALSE;
   std::vector<PetscReal> u0, du0;
+  // -transient_start FILE: the start state read from a results file, -transient_start_from which of
+  // its states (auto: the first of transient, shooting, expanded, energy of the model's size).
+  std::string start_file, start_from = "auto";
   // Not an option: a caller that analyses the records as they come (the statistical steady state)
   // sets it, and the run then keeps no full state per record (TransientResult::streamed). Called on
   // rank 0 at every record with the result's header (h, T_ref, keep_every, steps_planned) set.
@@ -160,6 +164,10 @@ private:
   PetscErrorCode StartMode(const StabilityResult &stab, const Mode **start) const;
   PetscErrorCode RecordCount(PetscInt N, PetscInt nc, PetscInt nsteps, TransientResult &res, PetscInt *records) const;
   PetscErrorCode StartState(const SlidingEquilibrium &eq, const Mode &m, Vec U, Vec dU) const;
+  // -transient_start: (U, dU) of N values each, and the reactions when the file's state is a
+  // transient's last record with as many points (else r is left as it is); `what` names the source.
+  PetscErrorCode ReadStart(PetscInt N, PetscInt nc, std::vector<PetscReal> &u, std::vector<PetscReal> &du, Eigen::VectorXd &r,
+                           std::string &what) const;
 
   MPI_Comm comm_;
 };

@@ -91,4 +91,33 @@ private:
   bool        aside_ = false; // the file went to aside_path_ (see Close)
 };
 
+// Reading back a squeal results file (a transient's start, -transient_start). Rank 0 reads through
+// HDF5's serial driver and every rank gets the values; calls are collective, and a failure (no such
+// file, not a results file, a dataset of another type) is one message naming the file and `what`
+// (the option that named it).
+class H5Reader {
+public:
+  H5Reader() = default;
+  ~H5Reader();
+  H5Reader(const H5Reader &)            = delete;
+  H5Reader &operator=(const H5Reader &) = delete;
+
+  PetscErrorCode     Open(MPI_Comm comm, const char *path, const char *what);
+  const std::string &Path() const { return path_; }
+  // The dimensions of dataset `name` (absolute path); empty if the file has none of that name.
+  PetscErrorCode Dims(const char *name, std::vector<hsize_t> &dims);
+  // Dataset `name` as doubles, row-major: the whole of it, or only its row `row` along the first
+  // dimension (a record of a transient's /transient/U without reading the others).
+  PetscErrorCode Read(const char *name, std::vector<PetscReal> &data, hsize_t row = (hsize_t)-1);
+  // The root attribute "status" ("complete", "interrupted (SIGINT) ...", "failed: ...").
+  const std::string &Status() const { return status_; }
+
+private:
+  PetscErrorCode Sync(); // raises err_ (from rank 0) on every rank
+  MPI_Comm       comm_ = MPI_COMM_NULL;
+  PetscMPIInt    rank_ = 0;
+  hid_t          file_ = -1;
+  std::string    path_, what_, err_, status_;
+};
+
 } // namespace squeal::io
