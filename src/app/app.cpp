@@ -423,7 +423,7 @@ PetscErrorCode RunEnergyAndCycle(Pipeline &p, const Request &req, io::H5Writer &
                           Num(p.estimate.T0).c_str()));
   PetscErrorCode serr = p.Shoot();
   PetscCall(PetscLogStagePop());
-  if (p.estimate.found) { // also the best iterate of a failed run
+  if (p.estimate.found || !p.shooting.start_file.empty()) { // also the best iterate of a failed run
     PetscCall(p.shooting.Write(p.cycle, out));
     PetscCall(WriteExpandedOrbit(p.model, p.cycle, out));
   }

@@ -1,6 +1,8 @@
 #include "squeal/app/pipeline.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
+#include "squeal/io/start_state.h"
 #include "squeal/model/builders.h"
 #include "squeal/reduction/craig_bampton.h"
 
@@ -168,6 +170,19 @@ PetscErrorCode Pipeline::Shoot()
   PetscCheck(estimate.mode >= 0, comm_, PETSC_ERR_ARG_WRONGSTATE,
              "shooting: no unstable mode in the band at mu = %g, V = %g m/s, so no limit cycle to start from", (double)model.contacts.Mu(),
              (double)model.contacts.V());
+  if (!shooting.start_file.empty()) {
+    io::StartState z;
+    PetscCall(io::ReadStartState(comm_, shooting.start_file, shooting.start_from, model.Size(), model.contacts.Size(), "-shoot_start", z));
+    const PetscReal T = shooting.period > 0 ? shooting.period : (z.period > 0 ? z.period : estimate.T0);
+    PetscCall(PetscPrintf(comm_, "shooting: start from %s, start period %.10g s (%s)\n", z.what.c_str(), (double)T,
+                          shooting.period > 0 ? "-shoot_period" : z.period > 0 ? "the file's" : "the linear one: the file has none"));
+    PetscCall(VecDuplicate(eq.U, U0.out()));
+    PetscCall(VecDuplicate(eq.U, dU0.out()));
+    PetscCall(SetOwnedRows(z.U.data(), U0));
+    PetscCall(SetOwnedRows(z.dU.data(), dU0));
+    PetscCall(shooting.Solve(model, eq, theta, U0, dU0, T, cycle));
+    PetscFunctionReturn(0);
+  }
   PetscCheck(estimate.found, comm_, PETSC_ERR_NOT_CONVERGED,
              "shooting: the energy estimate found no amplitude where damping and reaction powers balance up to %g q_sep; no initial guess "
              "(raise -energy_q_max_factor or -energy_extend)",

@@ -131,7 +131,8 @@ PetscErrorCode FloquetSolver::View(const ShootingResult &res, PetscViewer viewer
                                      res.floquet.size()));
   else if (res.floquet_verdict == "undecided")
     PetscCall(PetscViewerASCIIPrintf(viewer, "  the multipliers' error is as large as the margin: refine -shoot_steps (the trivial "
-                                             "multiplier's distance from 1 falls with the step) before trusting the verdict\n"));
+                                             "multiplier's distance from 1 falls with the step) before trusting the verdict; "
+                                             "-shoot_start with this run's results file starts Newton from this cycle\n"));
   for (size_t i = 0; i < res.floquet.size() && i < 8; ++i)
     PetscCall(PetscViewerASCIIPrintf(viewer, "  %2zu  %+.6f %+.6fi  |L| = %.6f%s\n", i, res.floquet[i].real(), res.floquet[i].imag(),
                                      std::abs(res.floquet[i]), (PetscInt)i == res.trivial ? "  (trivial)" : ""));

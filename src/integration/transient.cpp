@@ -4,6 +4,7 @@
 #include "squeal/core/gather.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
+#include "squeal/io/start_state.h"
 
 #include <algorithm>
 #include <chrono>
@@ -63,8 +64,8 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
                                  "from the reduced cycle), the energy estimate's Z0; replaces the mode start",
                                  "TransientAnalysis", start_file.c_str(), buf_file, sizeof buf_file, &set));
     if (set) start_file = buf_file;
-    const char *const froms[] = {"auto", "transient", "shooting", "expanded", "energy"};
-    PetscInt          from    = 0;
+    const char *const *froms = io::kStartSources;
+    PetscInt           from  = 0;
     for (PetscInt i = 0; i < 5; ++i)
       if (start_from == froms[i]) from = i;
     PetscCall(PetscOptionsEList("-start_from",
@@ -90,77 +91,9 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
   for (PetscReal x : u0) PetscCheck(std::isfinite(x), comm_, kErrInput, "option -transient_u0 has a NaN or infinite entry");
   for (PetscReal x : du0) PetscCheck(std::isfinite(x), comm_, kErrInput, "option -transient_du0 has a NaN or infinite entry");
   PetscCheck(start_file.empty() || u0.empty(), comm_, kErrInput, "options -transient_start and -transient_u0 both give the start: keep one");
-  if (!start_file.empty()) {
-    // A missing or foreign file fails here, before any model work.
-    io::H5Reader in;
-    PetscCall(in.Open(comm_, start_file.c_str(), "-transient_start"));
-  }
+  // A missing or foreign file fails here, before any model work.
+  if (!start_file.empty()) PetscCall(io::CheckStartFile(comm_, start_file, "-transient_start"));
   PetscFunctionReturn(0);
-}
-
-PetscErrorCode TransientAnalysis::ReadStart(PetscInt N, PetscInt nc, std::vector<PetscReal> &u, std::vector<PetscReal> &du,
-                                            Eigen::VectorXd &r, std::string &what) const
-{
-  io::H5Reader in;
-  PetscFunctionBeginUser;
-  PetscCall(in.Open(comm_, start_file.c_str(), "-transient_start"));
-  // The sources in the order auto tries them; a transient is N values a record, a Z0 2N values.
-  struct Source {
-    const char *from, *dataset;
-  };
-  const Source sources[] = {{"transient", "/transient/U"}, {"shooting", "/shooting/Z0"}, {"expanded", "/expanded/Z0"}, {"energy", "/energy/Z0"}};
-  std::string  seen;
-  for (const Source &src : sources) {
-    if (start_from != "auto" && start_from != src.from) continue;
-    std::vector<hsize_t> dims;
-    PetscCall(in.Dims(src.dataset, dims));
-    if (dims.empty()) continue;
-    const bool   records = std::string(src.from) == "transient";
-    const size_t values  = records ? (dims.size() == 2 ? (size_t)dims[1] : 0) : (dims.size() == 1 ? (size_t)dims[0] / 2 : 0);
-    if (records && dims[0] == 0) {
-      seen += std::string(seen.empty() ? "" : ", ") + src.dataset + " with no record";
-      continue;
-    }
-    if (values != (size_t)N || (!records && dims[0] != 2 * (hsize_t)N)) {
-      char b[160];
-      std::snprintf(b, sizeof b, "%s%s of a %zu-DOF model", seen.empty() ? "" : ", ", src.dataset, values);
-      seen += b;
-      continue;
-    }
-    if (records) {
-      const hsize_t last = dims[0] - 1;
-      PetscCall(in.Read("/transient/U", u, last));
-      PetscCall(in.Read("/transient/V", du, last));
-      std::vector<hsize_t> rd;
-      PetscCall(in.Dims("/transient/R", rd));
-      if (rd.size() == 3 && rd[0] == dims[0] && rd[1] == (hsize_t)nc && rd[2] == 3) {
-        std::vector<PetscReal> rv;
-        PetscCall(in.Read("/transient/R", rv, last));
-        r = Eigen::Map<const Eigen::VectorXd>(rv.data(), 3 * nc);
-      }
-      std::vector<PetscReal> t;
-      PetscCall(in.Read("/transient/t", t, last));
-      char b[200];
-      std::snprintf(b, sizeof b, "the last record of /transient (t = %.9g s, record %llu) of %s", (double)t[0], (unsigned long long)last,
-                    start_file.c_str());
-      what = b;
-    } else {
-      std::vector<PetscReal> z;
-      PetscCall(in.Read(src.dataset, z));
-      u.assign(z.begin(), z.begin() + N);
-      du.assign(z.begin() + N, z.end());
-      what = std::string(src.dataset) + " of " + start_file;
-    }
-    for (PetscReal x : u) PetscCheck(std::isfinite(x), comm_, kErrInput, "-transient_start: %s has a NaN or infinite entry", what.c_str());
-    for (PetscReal x : du) PetscCheck(std::isfinite(x), comm_, kErrInput, "-transient_start: %s has a NaN or infinite entry", what.c_str());
-    if (in.Status() != "complete") what += " (the file's status is not \"complete\")";
-    PetscFunctionReturn(0);
-  }
-  std::string looked;
-  for (const Source &src : sources)
-    if (start_from == "auto" || start_from == src.from) looked += std::string(looked.empty() ? "" : ", ") + src.dataset;
-  SETERRQ(comm_, kErrInput, "-transient_start '%s' has no start state for this model of %" PetscInt_FMT " DOFs (-transient_start_from %s): %s",
-          start_file.c_str(), N, start_from.c_str(), seen.empty() ? ("no " + looked).c_str() : ("it has " + seen).c_str());
 }
 
 namespace {
@@ -499,8 +432,8 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
   PetscCall(RecordCount(N, nc, nsteps, res, &records));
   if (rank == 0) book.SizeRecords(records);
 
-  std::vector<PetscReal> su, sdu;
-  Eigen::VectorXd        r = Eigen::VectorXd::Zero(3 * nc); // the contact's warm start
+  io::StartState  from_file;
+  Eigen::VectorXd r = Eigen::VectorXd::Zero(3 * nc); // the contact's warm start
   for (PetscInt c = 0; c < nc; ++c) {
     r[3 * c + kT] = model.contacts.Mu() * eq.N[c];
     r[3 * c + kN] = eq.N[c];
@@ -512,7 +445,9 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
     PetscCheck(du0.empty() || (PetscInt)du0.size() == N, comm_, kErrInput,
                "option -transient_du0 has %zu values, the model has %" PetscInt_FMT " DOFs", du0.size(), N);
   } else if (!start_file.empty()) {
-    PetscCall(ReadStart(N, nc, su, sdu, r, res.start));
+    PetscCall(io::ReadStartState(comm_, start_file, start_from, N, nc, "-transient_start", from_file));
+    if (!from_file.R.empty()) r = Eigen::Map<const Eigen::VectorXd>(from_file.R.data(), 3 * nc);
+    res.start = from_file.what;
     PetscCall(PetscPrintf(comm_, "transient: start from %s\n", res.start.c_str()));
   } else PetscCheck(m.phi_re, comm_, kErrInput, "transient: mode shapes are needed for the start (-stab_modes)");
   PetscCall(ti.SetUp(model, res.h));
@@ -529,9 +464,9 @@ PetscErrorCode TransientAnalysis::Run(const Model &model, const SlidingEquilibri
     PetscCall(VecDuplicate(eq.U, U.out()));
     PetscCall(VecDuplicate(eq.U, dU.out()));
   }
-  if (!su.empty()) {
-    PetscCall(SetOwnedRows(su.data(), U));
-    PetscCall(SetOwnedRows(sdu.data(), dU));
+  if (!from_file.U.empty()) {
+    PetscCall(SetOwnedRows(from_file.U.data(), U));
+    PetscCall(SetOwnedRows(from_file.dU.data(), dU));
   } else PetscCall(StartState(eq, m, U, dU));
   PetscCall(book.SetUp(model, size == 1 && ti.FixedSizeKernel(), U, dU, size == 1 ? us.data() : nullptr, size == 1 ? dus.data() : nullptr, r));
   StatusOf status_of(model.contacts, ti.Contact());

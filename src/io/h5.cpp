@@ -503,4 +503,41 @@ PetscErrorCode H5Reader::Read(const char *name, std::vector<PetscReal> &data, hs
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode H5Reader::ReadScalar(const char *name, const char *attr, PetscReal *v, bool *found)
+{
+  PetscReal x[2] = {0, 0}; // value, found
+  PetscFunctionBeginUser;
+  if (rank_ == 0 && file_ >= 0 && H5Lexists(file_, name, H5P_DEFAULT) > 0) {
+    double val = 0;
+    if (attr) {
+      if (H5Aexists_by_name(file_, name, attr, H5P_DEFAULT) > 0) {
+        const hid_t a = H5Aopen_by_name(file_, name, attr, H5P_DEFAULT, H5P_DEFAULT);
+        const hid_t s = a >= 0 ? H5Aget_space(a) : -1;
+        const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
+        const H5T_class_t c = t >= 0 ? H5Tget_class(t) : H5T_NO_CLASS;
+        if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 && (c == H5T_FLOAT || c == H5T_INTEGER) && H5Aread(a, H5T_NATIVE_DOUBLE, &val) >= 0)
+          x[0] = val, x[1] = 1;
+        if (t >= 0) H5Tclose(t);
+        if (s >= 0) H5Sclose(s);
+        if (a >= 0) H5Aclose(a);
+      }
+    } else if (H5Oexists_by_name(file_, name, H5P_DEFAULT) > 0) {
+      const hid_t d = H5Dopen2(file_, name, H5P_DEFAULT);
+      const hid_t s = d >= 0 ? H5Dget_space(d) : -1;
+      const hid_t t = d >= 0 ? H5Dget_type(d) : -1;
+      const H5T_class_t c = t >= 0 ? H5Tget_class(t) : H5T_NO_CLASS;
+      if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 && (c == H5T_FLOAT || c == H5T_INTEGER) &&
+          H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &val) >= 0)
+        x[0] = val, x[1] = 1;
+      if (t >= 0) H5Tclose(t);
+      if (s >= 0) H5Sclose(s);
+      if (d >= 0) H5Dclose(d);
+    }
+  }
+  PetscCallMPI(MPI_Bcast(x, 2, MPIU_REAL, 0, comm_));
+  *v     = x[0];
+  *found = x[1] != 0;
+  PetscFunctionReturn(0);
+}
+
 } // namespace squeal::io

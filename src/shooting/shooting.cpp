@@ -1,4 +1,5 @@
 #include "squeal/shooting/shooting.h"
+#include "squeal/io/start_state.h"
 #include "internal.h"
 #include "squeal/core/inf.h"
 #include "squeal/core/errors.h"
@@ -57,6 +58,25 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Shooting", &period, Range::NonNegative(), checks);
   SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
                     Range::Positive(), checks);
+  {
+    char      buf_file[PETSC_MAX_PATH_LEN] = "";
+    PetscBool set                          = PETSC_FALSE;
+    PetscCall(PetscOptionsString("-start",
+                                 "Start from a state in a squeal results file (.h5) instead of the energy estimate: a cycle's /shooting/Z0 "
+                                 "(again at other -shoot_steps), a settled transient's last record, a reduced cycle on the full model "
+                                 "(/expanded/Z0); its period is the start period unless -shoot_period is given",
+                                 "Shooting", start_file.c_str(), buf_file, sizeof buf_file, &set));
+    if (set) start_file = buf_file;
+    const char *const *froms = io::kStartSources;
+    PetscInt           from  = 0;
+    for (PetscInt i = 0; i < 5; ++i)
+      if (start_from == froms[i]) from = i;
+    PetscCall(PetscOptionsEList("-start_from",
+                                "Which state of -shoot_start's file (auto: the first of transient, shooting, expanded, energy with the "
+                                "model's number of DOFs)",
+                                "Shooting", froms, 5, froms[from], &from, nullptr));
+    start_from = froms[from];
+  }
   PetscCall(PetscOptionsBool("-fd_motion",
                              "Finite-difference steps of the flow derivatives relative to the motion's size |(omega_0 (U0 - U_e), dU0)| "
                              "(and the period's share) instead of ||Z0||",
@@ -147,6 +167,8 @@ PetscErrorCode Shooting::SetFromOptions()
                             "Shooting", recycle, &recycle, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  // A missing or foreign file fails here, before any model work.
+  if (!start_file.empty()) PetscCall(io::CheckStartFile(comm_, start_file, "-shoot_start"));
   PetscCheck(steps == PETSC_DECIDE || steps >= 2, comm_, kErrInput, "option -shoot_steps = %" PetscInt_FMT ": expected >= 2", steps);
   PetscCheck(pre_periods == PETSC_DECIDE || pre_periods >= 0, comm_, kErrInput,
              "option -shoot_pre_periods = %" PetscInt_FMT ": expected >= 0", pre_periods);

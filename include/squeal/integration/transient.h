@@ -164,10 +164,6 @@ private:
   PetscErrorCode StartMode(const StabilityResult &stab, const Mode **start) const;
   PetscErrorCode RecordCount(PetscInt N, PetscInt nc, PetscInt nsteps, TransientResult &res, PetscInt *records) const;
   PetscErrorCode StartState(const SlidingEquilibrium &eq, const Mode &m, Vec U, Vec dU) const;
-  // -transient_start: (U, dU) of N values each, and the reactions when the file's state is a
-  // transient's last record with as many points (else r is left as it is); `what` names the source.
-  PetscErrorCode ReadStart(PetscInt N, PetscInt nc, std::vector<PetscReal> &u, std::vector<PetscReal> &du, Eigen::VectorXd &r,
-                           std::string &what) const;
 
   MPI_Comm comm_;
 };

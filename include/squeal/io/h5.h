@@ -109,6 +109,9 @@ public:
   // Dataset `name` as doubles, row-major: the whole of it, or only its row `row` along the first
   // dimension (a record of a transient's /transient/U without reading the others).
   PetscErrorCode Read(const char *name, std::vector<PetscReal> &data, hsize_t row = (hsize_t)-1);
+  // A real scalar: the dataset `name` holding one value, or with `attr` the attribute `attr` of the
+  // object `name`; *found false (and *v 0) if absent.
+  PetscErrorCode ReadScalar(const char *name, const char *attr, PetscReal *v, bool *found);
   // The root attribute "status" ("complete", "interrupted (SIGINT) ...", "failed: ...").
   const std::string &Status() const { return status_; }
 

@@ -167,6 +167,10 @@ public:
   // where the start is already on a branch of cycles (continuation).
   bool      auto_pre_periods = true;
   PetscReal period = 0; // -shoot_period: the start period (and the bracket's centre) instead of the linear one; 0: linear
+  // -shoot_start FILE, -shoot_start_from: the start (U0, dU0) and its period read from a results file
+  // (io/start_state.h) instead of the energy estimate's: a cycle again at another -shoot_steps, a
+  // settled transient's end, the full model from a reduced cycle (/expanded/Z0).
+  std::string start_file, start_from = "auto";
   // -shoot_exact_jacobian: tangent products (else finite differences); -shoot_jacobian_dense_max:
   // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
   // factorised (the Krylov solve then converges in one iteration); above it GMRES on the products.
