@@ -280,6 +280,7 @@ PetscErrorCode Settle(Pipeline &p, const std::vector<PetscReal> &U, const std::v
   PetscCall(p.steady.View(p.settled, PETSC_VIEWER_STDOUT_(comm)));
   PetscCall(p.steady.ViewFromOptions(p.settled));
   PetscCall(p.steady.Write(p.settled, out));
+  PetscCall(WriteExpandedEnd(p.model, p.settled.U_end, p.settled.dU_end, out));
   PetscCall(Checkpoint(comm, out, p.settled.complete ? "the statistical steady state" : "the statistical steady state's chunks so far"));
   PetscFunctionReturn(0);
 }

@@ -99,4 +99,18 @@ PetscErrorCode WriteExpandedRecords(const Model &model, const TransientResult &r
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode WriteExpandedEnd(const Model &model, const std::vector<PetscReal> &U, const std::vector<PetscReal> &dU, io::H5Writer &out)
+{
+  const Expansion *x = model.expansion.get();
+  PetscFunctionBeginUser;
+  if (!x || U.size() != (size_t)x->n || dU.size() != U.size()) PetscFunctionReturn(0);
+  std::vector<PetscReal> q(U), Z;
+  PetscCallCXX(q.insert(q.end(), dU.begin(), dU.end()));
+  if (!x->E.empty()) PetscCallCXX(x->Apply(q.data(), 2, Z));
+  else Z.assign(2 * (size_t)x->full_size, 0.0); // not rank 0: nothing is read there
+  PetscCall(out.WriteArray("/expanded/Z_end", {2 * (hsize_t)x->full_size}, Z.data()));
+  PetscCall(out.WriteAttribute("/expanded/Z_end", "layout", "(U, dU) on the full model's DOFs: /steady_state/Z_end expanded"));
+  PetscFunctionReturn(0);
+}
+
 } // namespace squeal

@@ -66,12 +66,12 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
     if (set) start_file = buf_file;
     const char *const *froms = io::kStartSources;
     PetscInt           from  = 0;
-    for (PetscInt i = 0; i < 5; ++i)
+    for (PetscInt i = 0; i < io::kNumStartSources; ++i)
       if (start_from == froms[i]) from = i;
     PetscCall(PetscOptionsEList("-start_from",
-                                "Which state of -transient_start's file (auto: the first of transient, shooting, expanded, energy "
+                                "Which state of -transient_start's file (auto: the first of transient, steady, shooting, expanded, energy "
                                 "with the model's number of DOFs)",
-                                "TransientAnalysis", froms, 5, froms[from], &from, nullptr));
+                                "TransientAnalysis", froms, io::kNumStartSources, froms[from], &from, nullptr));
     start_from = froms[from];
   }
   PetscCall(PetscOptionsInt("-monitor", "Print a monitor line every k steps (0: never)", "TransientAnalysis", monitor, &monitor,

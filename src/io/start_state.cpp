@@ -7,7 +7,7 @@
 
 namespace squeal::io {
 
-const char *const kStartSources[5] = {"auto", "transient", "shooting", "expanded", "energy"};
+const char *const kStartSources[kNumStartSources] = {"auto", "transient", "steady", "shooting", "expanded", "energy"};
 
 PetscErrorCode CheckStartFile(MPI_Comm comm, const std::string &file, const char *option)
 {
@@ -28,7 +28,8 @@ PetscErrorCode ReadStartState(MPI_Comm comm, const std::string &file, const std:
   struct Source {
     const char *from, *dataset;
   };
-  const Source sources[] = {{"transient", "/transient/U"}, {"shooting", "/shooting/Z0"}, {"expanded", "/expanded/Z0"}, {"energy", "/energy/Z0"}};
+  const Source sources[] = {{"transient", "/transient/U"}, {"steady", "/steady_state/Z_end"}, {"shooting", "/shooting/Z0"},
+                            {"expanded", "/expanded/Z0"},  {"expanded", "/expanded/Z_end"},    {"energy", "/energy/Z0"}};
   std::string  seen;
   for (const Source &src : sources) {
     if (from != "auto" && from != src.from) continue;
@@ -72,9 +73,10 @@ PetscErrorCode ReadStartState(MPI_Comm comm, const std::string &file, const std:
       out.U.assign(z.begin(), z.begin() + N);
       out.dU.assign(z.begin() + N, z.end());
       out.what = std::string(src.dataset) + " of " + file;
-      bool f;
-      if (std::string(src.from) == "energy") PetscCall(in.ReadScalar("/energy", "T0", &out.period, &f));
-      else PetscCall(in.ReadScalar("/shooting/period", nullptr, &out.period, &f));
+      bool              f;
+      const std::string d = src.dataset;
+      if (d == "/energy/Z0") PetscCall(in.ReadScalar("/energy", "T0", &out.period, &f));
+      else if (d == "/shooting/Z0" || d == "/expanded/Z0") PetscCall(in.ReadScalar("/shooting/period", nullptr, &out.period, &f));
     }
     for (PetscReal x : out.U) PetscCheck(std::isfinite(x), comm, kErrInput, "%s: %s has a NaN or infinite entry", option, out.what.c_str());
     for (PetscReal x : out.dU) PetscCheck(std::isfinite(x), comm, kErrInput, "%s: %s has a NaN or infinite entry", option, out.what.c_str());

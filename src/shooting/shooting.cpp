@@ -69,12 +69,12 @@ PetscErrorCode Shooting::SetFromOptions()
     if (set) start_file = buf_file;
     const char *const *froms = io::kStartSources;
     PetscInt           from  = 0;
-    for (PetscInt i = 0; i < 5; ++i)
+    for (PetscInt i = 0; i < io::kNumStartSources; ++i)
       if (start_from == froms[i]) from = i;
     PetscCall(PetscOptionsEList("-start_from",
-                                "Which state of -shoot_start's file (auto: the first of transient, shooting, expanded, energy with the "
+                                "Which state of -shoot_start's file (auto: the first of transient, steady, shooting, expanded, energy with the "
                                 "model's number of DOFs)",
-                                "Shooting", froms, 5, froms[from], &from, nullptr));
+                                "Shooting", froms, io::kNumStartSources, froms[from], &from, nullptr));
     start_from = froms[from];
   }
   PetscCall(PetscOptionsBool("-fd_motion",

@@ -376,6 +376,13 @@ PetscErrorCode SteadyState::Write(const SteadyStateResult &res, io::H5Writer &ou
   // Sizes from rank 0 (the records and the analysis are there).
   unsigned long long n[4] = {a.freq.size(), a.lines.size(), res.t.size() - std::min(res.t.size(), a.cut), res.rn.empty() ? 0ull : 1ull};
   PetscCallMPI(MPI_Bcast(n, 4, MPI_UNSIGNED_LONG_LONG, 0, comm_));
+  // The end state, every rank's copy the same: a run goes on from it (-transient_start, -shoot_start).
+  if (!res.U_end.empty() && res.U_end.size() == res.dU_end.size()) {
+    std::vector<PetscReal> z(res.U_end);
+    PetscCallCXX(z.insert(z.end(), res.dU_end.begin(), res.dU_end.end()));
+    PetscCall(out.WriteArray("/steady_state/Z_end", {(hsize_t)z.size()}, z.data()));
+    PetscCall(out.WriteAttribute("/steady_state/Z_end", "layout", "(U, dU) at the end of the last chunk"));
+  }
   PetscCall(out.WriteArray("/steady_state/psd_frequency", {n[0]}, a.freq.data()));
   PetscCall(out.WriteArray("/steady_state/psd", {n[0]}, a.psd.data()));
   PetscCall(out.WriteArray("/steady_state/lines", {n[1]}, a.lines.data()));

@@ -15,6 +15,7 @@
 4. Shooting from a transient's last record (10 periods of the linear mode's motion) converges to
    the cycle found from the energy estimate: period within 1e-6 (the discrete cycle's period
    moves with the phase Newton settles at, by 1.4e-8 here).
+5. A transient from a statistical steady state's end (/steady_state/Z_end) starts on it exactly.
 """
 import subprocess
 import sys
@@ -94,6 +95,16 @@ def main():
     print(f"from the transient's last record: converged {ok}, period {T3:.12g} s ({abs(T3 - T) / T:.2e} from the estimate's)")
     if not (ok and abs(T3 - T) <= 1e-6 * T):
         sys.exit("check_start_from_file: shooting from a transient's last record")
+
+    run(squeal + ["-scene", scene, "-analyses", "steady", "-steady_max_periods", "100", "-output", f"{out}/start_steady.h5"])
+    run(base + ["-transient_periods", "1", "-transient_start", f"{out}/start_steady.h5", "-output", f"{out}/start_from_steady.h5"])
+    with h5py.File(f"{out}/start_steady.h5", "r") as f:
+        z = f["steady_state/Z_end"][:]
+    with h5py.File(f"{out}/start_from_steady.h5", "r") as f:
+        t = f["transient"]
+        first, start = np.concatenate([t["U"][0], t["V"][0]]), t.attrs["start"]
+    if not (np.array_equal(first, z) and b"/steady_state/Z_end" in start):
+        sys.exit(f"check_start_from_file: the transient from the steady state's end starts at {start!r}, not on Z_end")
     print("check_start_from_file: OK")
 
 

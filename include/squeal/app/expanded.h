@@ -21,5 +21,8 @@ namespace squeal {
 PetscErrorCode WriteExpandedModes(const Model &model, const StabilityResult &res, io::H5Writer &out);
 PetscErrorCode WriteExpandedOrbit(const Model &model, const ShootingResult &res, io::H5Writer &out);
 PetscErrorCode WriteExpandedRecords(const Model &model, const TransientResult &res, io::H5Writer &out);
+// A reduced end state (U, dU; all n values on every rank) on the full model's DOFs, /expanded/Z_end:
+// the full model's transient goes on from the reduced steady state with -transient_start.
+PetscErrorCode WriteExpandedEnd(const Model &model, const std::vector<PetscReal> &U, const std::vector<PetscReal> &dU, io::H5Writer &out);
 
 } // namespace squeal

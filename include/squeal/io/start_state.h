@@ -3,8 +3,10 @@
 // The sources, in the order `auto` tries them, each taken only if it holds the model's N DOFs:
 //   transient  the last record of /transient (U, V; its reactions R as the contact's warm start;
 //              the settled period, if the run settled)
+//   steady     /steady_state/Z_end (the statistical steady state's end state)
 //   shooting   /shooting/Z0 (a cycle's start; its period)
-//   expanded   /expanded/Z0 (a reduced cycle's start on the full model's DOFs; its period)
+//   expanded   /expanded/Z0 (a reduced cycle's start on the full model's DOFs; its period), else
+//              /expanded/Z_end (a reduced steady state's end state on them)
 //   energy     /energy/Z0 (the energy estimate's start; its period T0)
 // A file without any of them for this N is an error naming what the file has.
 #pragma once
@@ -23,8 +25,9 @@ struct StartState {
   std::string            what;       // "/shooting/Z0 of FILE", said on stdout and kept in the results
 };
 
-// The names `from` accepts, for an options list: auto, transient, shooting, expanded, energy.
-extern const char *const kStartSources[5];
+// The names `from` accepts, for an options list: auto, transient, steady, shooting, expanded, energy.
+constexpr int            kNumStartSources = 6;
+extern const char *const kStartSources[kNumStartSources];
 
 // Reads `file` (named by `option` in messages) for a model of N DOFs and nc contact points.
 // Collective; every rank gets the whole state.
