@@ -501,7 +501,8 @@ PetscErrorCode RunAnalyses(Pipeline &p, const Request &req, const char *output, 
     PetscCall(p.transient.View(tr, PETSC_VIEWER_STDOUT_(comm)));
     PetscCall(Checkpoint(comm, out, tr.complete ? "the transient" : "the transient step in hand (the steps so far are written)"));
   }
-  if (req.steady) PetscCall(Settle(p, {}, {}, "the mode", out, st));
+  if (req.steady)
+    PetscCall(Settle(p, {}, {}, p.transient.start_file.empty() ? "the mode" : "the state of -transient_start " + p.transient.start_file, out, st));
   if (req.torus) {
     PetscCall(p.torus.Run(p.model, p.eq, p.stability, p.theta, p.transient, p.torus_result));
     PetscCall(ReportTorus(p, out));
