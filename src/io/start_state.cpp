@@ -76,6 +76,12 @@ PetscErrorCode ReadStartState(MPI_Comm comm, const std::string &file, const std:
       bool              f;
       const std::string d = src.dataset;
       if (d == "/energy/Z0") PetscCall(in.ReadScalar("/energy", "T0", &out.period, &f));
+      else if (d == "/steady_state/Z_end" || d == "/expanded/Z_end") {
+        // One spectral base: the motion's fundamental f1 (a periodic verdict), so the period 1 / f1.
+        PetscReal f1;
+        PetscCall(in.ReadScalar("/steady_state", "bases", &f1, &f));
+        if (f && f1 > 0) out.period = 1 / f1;
+      }
       else if (d == "/shooting/Z0" || d == "/expanded/Z0") PetscCall(in.ReadScalar("/shooting/period", nullptr, &out.period, &f));
     }
     for (PetscReal x : out.U) PetscCheck(std::isfinite(x), comm, kErrInput, "%s: %s has a NaN or infinite entry", option, out.what.c_str());

@@ -3,10 +3,11 @@
 // The sources, in the order `auto` tries them, each taken only if it holds the model's N DOFs:
 //   transient  the last record of /transient (U, V; its reactions R as the contact's warm start;
 //              the settled period, if the run settled)
-//   steady     /steady_state/Z_end (the statistical steady state's end state)
+//   steady     /steady_state/Z_end (the statistical steady state's end state; the period 1 / f1 when
+//              its spectrum has one base, f1)
 //   shooting   /shooting/Z0 (a cycle's start; its period)
 //   expanded   /expanded/Z0 (a reduced cycle's start on the full model's DOFs; its period), else
-//              /expanded/Z_end (a reduced steady state's end state on them)
+//              /expanded/Z_end (a reduced steady state's end state on them, the period as for steady)
 //   energy     /energy/Z0 (the energy estimate's start; its period T0)
 // A file without any of them for this N is an error naming what the file has.
 #pragma once
