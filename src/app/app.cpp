@@ -2,6 +2,7 @@
 #include "squeal/app/expanded.h"
 #include "squeal/app/pipeline.h"
 #include "squeal/core/errors.h"
+#include "squeal/core/gather.h"
 #include "squeal/core/interrupt.h"
 #include "squeal/core/options.h"
 #include "squeal/continuation/continuation.h"
@@ -297,6 +298,82 @@ PetscErrorCode ReportTorus(Pipeline &p, io::H5Writer &out)
   PetscFunctionReturn(0);
 }
 
+// -analyses auto after the statistical steady state: a converged periodic verdict (one base, f1)
+// goes on to shooting from the steady state's end state at T = 1 / f1 (-shoot_after_steady). The
+// route's pre-periods start from the energy estimate at the unstable mode's period; the steady
+// state's lines give the motion's own. The half brake at mu = 0.4, V = 5 m/s: the route's flow
+// stagnated at 2.5e-2 over 56 periods at the 10.2 kHz mode's period; from the steady state's end at
+// 1 / f1 = 1 / 9 226.86 Hz it returned within 1.6e-2 after 7 and Newton converged in 4 iterations,
+// and its multipliers (a complex pair at 1.007) said the cycle is unstable (docs/fe-workflow.md).
+// At most kAfterSteadyPrePeriods pre-periods and no Newton unless they return: the statistics stay
+// the answer, said in the route line and /route (cycle = "..."), not an error.
+PetscErrorCode CycleAfterSteady(Pipeline &p, io::H5Writer &out, const Stages &st)
+{
+  const MPI_Comm                comm = p.Comm();
+  const steady::Classification &cls  = p.settled.signal.cls;
+  char                          b[512];
+  PetscFunctionBeginUser;
+  // Broadcast: the statistics are rank 0's.
+  PetscReal q[2] = {cls.verdict == "periodic" && cls.bases.size() == 1 ? cls.bases[0] : 0.0, p.settled.converged ? 1.0 : 0.0};
+  PetscCallMPI(MPI_Bcast(q, 2, MPIU_REAL, 0, comm));
+  const char *g = "/route";
+  if (!(q[0] > 0) || !p.shooting.after_steady || p.settled.U_end.empty()) {
+    PetscCall(out.WriteAttribute(g, "cycle", q[0] > 0 ? "off (-shoot_after_steady false)" : "not asked (verdict not periodic with one base)"));
+    PetscFunctionReturn(0);
+  }
+  if (!(q[1] > 0)) {
+    const char *why = "cycle: not attempted: the statistical steady state did not converge, its lines may still move (raise -steady_max_periods)";
+    PetscCall(PetscPrintf(comm, "route: %s\n", why));
+    PetscCall(out.WriteAttribute(g, "cycle", "not attempted (statistics not converged)"));
+    PetscFunctionReturn(0);
+  }
+  Shooting &sh = p.shooting;
+  struct Restore {
+    Shooting &sh;
+    PetscInt  n, w;
+    ~Restore() { sh.pre_periods = n, sh.pre_stagnation = w, sh.after_pre_periods = nullptr; }
+  } restore{sh, sh.pre_periods, sh.pre_stagnation};
+  const PetscReal T = 1 / q[0];
+  sh.pre_periods    = sh.pre_periods > 0 ? std::min(sh.pre_periods, Shooting::kAfterSteadyPrePeriods) : Shooting::kAfterSteadyPrePeriods;
+  sh.pre_stagnation = PETSC_DECIDE;
+  bool returned     = false;
+  sh.after_pre_periods = [&](const Shooting::PrePeriodsOutcome &o, Vec, Vec, bool *newton) -> PetscErrorCode {
+    returned = *newton = o.returned;
+    return 0;
+  };
+  PetscCall(PetscPrintf(comm, "route: periodic, f1 = %.6g Hz: shooting from the steady state's end state at T = 1 / f1 = %.7g s (-shoot_after_steady)\n",
+                        (double)q[0], (double)T));
+  VecH U0, dU0;
+  PetscCall(VecDuplicate(p.eq.U, U0.out()));
+  PetscCall(VecDuplicate(p.eq.U, dU0.out()));
+  PetscCall(SetOwnedRows(p.settled.U_end.data(), U0));
+  PetscCall(SetOwnedRows(p.settled.dU_end.data(), dU0));
+  PetscCall(PetscLogStagePush(st.shooting));
+  PetscCall(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+  PetscErrorCode err = sh.Solve(p.model, p.eq, p.theta, U0, dU0, T, p.cycle);
+  PetscCall(PetscPopErrorHandler());
+  PetscCall(PetscLogStagePop());
+  PetscCheck(err != PETSC_ERR_SIG, comm, PETSC_ERR_SIG, "interrupted by %s during the shooting after the steady state", InterruptSignalName());
+  if (err && err != PETSC_ERR_NOT_CONVERGED) SETERRQ(comm, err, "auto: shooting after the steady state failed: %s", p.cycle.reason.c_str());
+  if (returned) { // Newton ran: its cycle or best iterate
+    PetscCall(sh.Write(p.cycle, out));
+    PetscCall(WriteExpandedOrbit(p.model, p.cycle, out));
+  }
+  if (p.cycle.converged) {
+    PetscCall(sh.View(p.cycle, PETSC_VIEWER_STDOUT_(comm)));
+    std::snprintf(b, sizeof b, "cycle: converged from the steady state's end, %.7g Hz, Floquet %s", (double)(1 / p.cycle.period),
+                  p.cycle.floquet_verdict.empty() ? "not computed" : p.cycle.floquet_verdict.c_str());
+  } else if (!returned)
+    std::snprintf(b, sizeof b, "cycle: not converged: the flow from the steady state's end did not return within -shoot_pre_tol in %" PetscInt_FMT
+                  " periods; the statistical steady state above stands", sh.pre_periods);
+  else std::snprintf(b, sizeof b, "cycle: not converged (%s); the statistical steady state above stands", p.cycle.reason.c_str());
+  PetscCall(PetscPrintf(comm, "route: %s\n", b));
+  PetscCall(out.WriteAttribute(g, "cycle", p.cycle.converged ? "converged" : "not converged"));
+  PetscCall(out.WriteAttribute(g, "cycle_reason", b));
+  PetscCall(Checkpoint(comm, out, p.cycle.converged ? "the cycle after the steady state" : "the steady state and the attempt at its cycle"));
+  PetscFunctionReturn(0);
+}
+
 // -analyses auto after the statistical steady state: a quasi-periodic verdict with two bases goes
 // on to the torus (-torus_auto) from those two lines (as -torus_f1, -torus_f2) and the torus's own
 // start-up from the mode (-torus_startup_periods). Not from the steady state's end state: on the
@@ -390,6 +467,7 @@ PetscErrorCode ShootOrSettle(Pipeline &p, io::H5Writer &out, const Stages &st)
   const bool from_mode = route.U.empty() || p.steady.from_mode;
   if (from_mode) route.U.clear(), route.dU.clear();
   PetscCall(Settle(p, route.U, route.dU, from_mode ? "the mode" : "the pre-periods' end state", out, st));
+  PetscCall(CycleAfterSteady(p, out, st));
   PetscCall(TorusAfterSteady(p, out));
   PetscFunctionReturn(0);
 }

@@ -69,7 +69,7 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
     for (PetscInt i = 0; i < io::kNumStartSources; ++i)
       if (start_from == froms[i]) from = i;
     PetscCall(PetscOptionsEList("-start_from",
-                                "Which state of -transient_start's file (auto: the first of transient, steady, shooting, expanded, energy "
+                                "Which state of -transient_start's file (auto: the first of transient, steady, shooting, expanded_end, expanded, energy "
                                 "with the model's number of DOFs)",
                                 "TransientAnalysis", froms, io::kNumStartSources, froms[from], &from, nullptr));
     start_from = froms[from];

@@ -7,7 +7,7 @@
 
 namespace squeal::io {
 
-const char *const kStartSources[kNumStartSources] = {"auto", "transient", "steady", "shooting", "expanded", "energy"};
+const char *const kStartSources[kNumStartSources] = {"auto", "transient", "steady", "shooting", "expanded_end", "expanded", "energy"};
 
 PetscErrorCode CheckStartFile(MPI_Comm comm, const std::string &file, const char *option)
 {
@@ -28,8 +28,8 @@ PetscErrorCode ReadStartState(MPI_Comm comm, const std::string &file, const std:
   struct Source {
     const char *from, *dataset;
   };
-  const Source sources[] = {{"transient", "/transient/U"}, {"steady", "/steady_state/Z_end"}, {"shooting", "/shooting/Z0"},
-                            {"expanded", "/expanded/Z0"},  {"expanded", "/expanded/Z_end"},    {"energy", "/energy/Z0"}};
+  const Source sources[] = {{"transient", "/transient/U"},       {"steady", "/steady_state/Z_end"}, {"shooting", "/shooting/Z0"},
+                            {"expanded_end", "/expanded/Z_end"}, {"expanded", "/expanded/Z0"},      {"energy", "/energy/Z0"}};
   std::string  seen;
   for (const Source &src : sources) {
     if (from != "auto" && from != src.from) continue;

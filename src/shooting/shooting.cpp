@@ -58,6 +58,10 @@ PetscErrorCode Shooting::SetFromOptions()
                     "Shooting", &period, Range::NonNegative(), checks);
   SquealOptionsReal("-q_scale", "Start from this multiple of the energy estimate's amplitude q0", "Shooting", &q_scale,
                     Range::Positive(), checks);
+  PetscCall(PetscOptionsBool("-after_steady",
+                             "-analyses auto: after a converged statistical steady state with a periodic spectrum (one base f1), shoot "
+                             "from its end state at T = 1 / f1 for the cycle and its Floquet multipliers",
+                             "Shooting", after_steady, &after_steady, nullptr));
   {
     char      buf_file[PETSC_MAX_PATH_LEN] = "";
     PetscBool set                          = PETSC_FALSE;
@@ -72,7 +76,7 @@ PetscErrorCode Shooting::SetFromOptions()
     for (PetscInt i = 0; i < io::kNumStartSources; ++i)
       if (start_from == froms[i]) from = i;
     PetscCall(PetscOptionsEList("-start_from",
-                                "Which state of -shoot_start's file (auto: the first of transient, steady, shooting, expanded, energy with the "
+                                "Which state of -shoot_start's file (auto: the first of transient, steady, shooting, expanded_end, expanded, energy with the "
                                 "model's number of DOFs)",
                                 "Shooting", froms, io::kNumStartSources, froms[from], &from, nullptr));
     start_from = froms[from];

@@ -4,19 +4,21 @@
 #   brake_full_from_steady.sh SQUEAL SCENE CCX_JOB OUT_DIR
 # The half brake at the scene's own operating point (mu = 0.4, V = 5 m/s: three unstable modes),
 # -analyses auto on its default CB reduction (90 kHz, 782 DOFs): the flow does not return, so the
-# statistical steady state. Then the unreduced 3 600-DOF model's steady state from that end state, and
+# statistical steady state, periodic, and from its end at T = 1 / f1 the cycle (-shoot_after_steady):
+# its period within 1e-3 of 1 / f1. Then the unreduced 3 600-DOF model's steady state from that end state, and
 # on its own from its most unstable mode (the independent check: 50 periods of this motion are enough
 # here). Each one's normal reaction mean within 1 % and RMS within 5 %, and its fundamental within
 # 1e-3, of the reduced model's. Measured 2026-11-30, all three periodic after one chunk of 50 periods:
 # f1 9 226.86 Hz reduced, 9 224.10 from its end (3.0e-4), 9 230.96 from the mode (4.4e-4); mean
-# 3 006.5 / 3 007.0 / 3 002.7 N; RMS 969.4 / 969.3 / 964.8 N; 9, 8 and 8 s.
+# 3 006.5 / 3 007.0 / 3 002.7 N; RMS 969.4 / 969.3 / 964.8 N. The cycle: 9 226.56 Hz (3.2e-5 from
+# f1) in 4 Newton iterations after 7 pre-periods. 47 s in all, 20 of them the cycle's.
 set -euo pipefail
 squeal=$1 scene=$2 job=$3 out=$4
 mkdir -p "$out"
 rm -f "$out/steady.h5" "$out/full_steady.h5" "$out/full_steady_mode.h5"
 "$squeal" -scene "$scene" -model_ccx_job "$job" -analyses auto -reduce_type craig_bampton -output "$out/steady.h5" |
-  grep -E "^route:|Craig-Bampton|verdict|total normal reaction"
-"$squeal" -scene "$scene" -model_ccx_job "$job" -analyses steady -transient_start "$out/steady.h5" -output "$out/full_steady.h5" |
+  grep -E "^route:|Craig-Bampton|verdict|total normal reaction|limit cycle"
+"$squeal" -scene "$scene" -model_ccx_job "$job" -analyses steady -transient_start "$out/steady.h5" -transient_start_from expanded_end -output "$out/full_steady.h5" |
   grep -E "start from|statistical steady state of|verdict|total normal reaction"
 "$squeal" -scene "$scene" -model_ccx_job "$job" -analyses steady -output "$out/full_steady_mode.h5" |
   grep -E "statistical steady state of|verdict|total normal reaction"
@@ -34,6 +36,14 @@ red = levels(sys.argv[1])
 with h5py.File(sys.argv[1], "r") as f:
     if "/expanded/Z_end" not in f:
         sys.exit("brake_full_from_steady: the reduced run wrote no /expanded/Z_end")
+    cycle = f["route"].attrs.get("cycle", b"")
+    cycle = cycle.decode() if isinstance(cycle, bytes) else cycle
+    if cycle != "converged" or "shooting" not in f:
+        sys.exit(f"brake_full_from_steady: the cycle after the periodic steady state: {cycle!r}")
+    T = f["shooting/period"][()]
+print(f"cycle after the steady state: {1 / T:.3f} Hz, {abs(T * red[2] - 1):.2e} from 1 / f1")
+if not abs(T * red[2] - 1) <= 1e-3:
+    sys.exit("brake_full_from_steady: the cycle's period is not the steady state's 1 / f1")
 print(f"reduced:              normal reaction mean {red[0]:.1f} N, RMS {red[1]:.1f} N, f1 {red[2]:.2f} Hz ({red[3]})")
 bad = False
 for name, path in (("full from its end", sys.argv[2]), ("full from its mode", sys.argv[3])):

@@ -1,14 +1,15 @@
 // A state to start from, read back from a squeal results file: -transient_start and -shoot_start.
 //
-// The sources, in the order `auto` tries them, each taken only if it holds the model's N DOFs:
-//   transient  the last record of /transient (U, V; its reactions R as the contact's warm start;
-//              the settled period, if the run settled)
-//   steady     /steady_state/Z_end (the statistical steady state's end state; the period 1 / f1 when
-//              its spectrum has one base, f1)
-//   shooting   /shooting/Z0 (a cycle's start; its period)
-//   expanded   /expanded/Z0 (a reduced cycle's start on the full model's DOFs; its period), else
-//              /expanded/Z_end (a reduced steady state's end state on them, the period as for steady)
-//   energy     /energy/Z0 (the energy estimate's start; its period T0)
+// The sources, in the order `auto` tries them (where the file's run ended first), each taken only if
+// it holds the model's N DOFs:
+//   transient     the last record of /transient (U, V; its reactions R as the contact's warm start;
+//                 the settled period, if the run settled)
+//   steady        /steady_state/Z_end (the statistical steady state's end state; the period 1 / f1
+//                 when its spectrum has one base, f1)
+//   shooting      /shooting/Z0 (a cycle's start; its period)
+//   expanded_end  /expanded/Z_end (a reduced steady state's end on the full model's DOFs; as steady)
+//   expanded      /expanded/Z0 (a reduced cycle's start on the full model's DOFs; its period)
+//   energy        /energy/Z0 (the energy estimate's start; its period T0)
 // A file without any of them for this N is an error naming what the file has.
 #pragma once
 
@@ -26,8 +27,8 @@ struct StartState {
   std::string            what;       // "/shooting/Z0 of FILE", said on stdout and kept in the results
 };
 
-// The names `from` accepts, for an options list: auto, transient, steady, shooting, expanded, energy.
-constexpr int            kNumStartSources = 6;
+// The names `from` accepts, for an options list: auto and the sources above.
+constexpr int            kNumStartSources = 7;
 extern const char *const kStartSources[kNumStartSources];
 
 // Reads `file` (named by `option` in messages) for a model of N DOFs and nc contact points.

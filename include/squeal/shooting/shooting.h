@@ -171,6 +171,11 @@ public:
   // (io/start_state.h) instead of the energy estimate's: a cycle again at another -shoot_steps, a
   // settled transient's end, the full model from a reduced cycle (/expanded/Z0).
   std::string start_file, start_from = "auto";
+  // -shoot_after_steady: -analyses auto, after a statistical steady state whose spectrum is periodic
+  // (one base f1) and converged, shoots from its end state at T = 1 / f1 (at most
+  // kAfterSteadyPrePeriods pre-periods, Newton only if they return): the cycle and its multipliers.
+  PetscBool after_steady = PETSC_TRUE;
+  static constexpr PetscInt kAfterSteadyPrePeriods = 20;
   // -shoot_exact_jacobian: tangent products (else finite differences); -shoot_jacobian_dense_max:
   // largest 2N + 1 for which the whole bordered Jacobian is built in one tangent integration and
   // factorised (the Krylov solve then converges in one iteration); above it GMRES on the products.
