@@ -55,25 +55,11 @@ PetscErrorCode TransientAnalysis::SetFromOptions()
                                   buf, &nd, nullptr));
   if (help) nd = 0;
   du0.assign(buf, buf + nd);
-  {
-    char buf_file[PETSC_MAX_PATH_LEN] = "";
-    PetscBool set = PETSC_FALSE;
-    PetscCall(PetscOptionsString("-start",
-                                 "Start from a state in a squeal results file (.h5): a transient's last record (go on from it), a "
-                                 "shooting cycle's Z0, the reduced cycle's Z0 expanded to the full model (/expanded/Z0: the full model "
-                                 "from the reduced cycle), the energy estimate's Z0; replaces the mode start",
-                                 "TransientAnalysis", start_file.c_str(), buf_file, sizeof buf_file, &set));
-    if (set) start_file = buf_file;
-    const char *const *froms = io::kStartSources;
-    PetscInt           from  = 0;
-    for (PetscInt i = 0; i < io::kNumStartSources; ++i)
-      if (start_from == froms[i]) from = i;
-    PetscCall(PetscOptionsEList("-start_from",
-                                "Which state of -transient_start's file (auto: the first of transient, steady, shooting, expanded_end, expanded, energy "
-                                "with the model's number of DOFs)",
-                                "TransientAnalysis", froms, io::kNumStartSources, froms[from], &from, nullptr));
-    start_from = froms[from];
-  }
+  PetscCall(io::StartOptions(PetscOptionsObject, "TransientAnalysis",
+                             "Start from a state in a squeal results file (.h5): a transient's last record (go on from it), a "
+                             "statistical steady state's end, a cycle's Z0, a reduced cycle's or steady state's on the full model "
+                             "(/expanded/Z0, /expanded/Z_end), the energy estimate's Z0; replaces the mode start",
+                             start_file, start_from));
   PetscCall(PetscOptionsInt("-monitor", "Print a monitor line every k steps (0: never)", "TransientAnalysis", monitor, &monitor,
                             nullptr));
   PetscCall(PetscOptionsBool("-progress", "Progress line with ETA on stderr (default: when stderr is a terminal)",

@@ -9,6 +9,24 @@ namespace squeal::io {
 
 const char *const kStartSources[kNumStartSources] = {"auto", "transient", "steady", "shooting", "expanded_end", "expanded", "energy"};
 
+PetscErrorCode StartOptions(PetscOptionItems *PetscOptionsObject, const char *owner, const char *help, std::string &file, std::string &from)
+{
+  char      buf[PETSC_MAX_PATH_LEN] = "";
+  PetscBool set                     = PETSC_FALSE;
+  PetscInt  k                       = 0;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsString("-start", help, owner, file.c_str(), buf, sizeof buf, &set));
+  if (set) file = buf;
+  for (PetscInt i = 0; i < kNumStartSources; ++i)
+    if (from == kStartSources[i]) k = i;
+  PetscCall(PetscOptionsEList("-start_from",
+                              "Which state of the start file (auto: the first of transient, steady, shooting, expanded_end, expanded, "
+                              "energy with the model's number of DOFs: where the file's run ended first)",
+                              owner, kStartSources, kNumStartSources, kStartSources[k], &k, nullptr));
+  from = kStartSources[k];
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CheckStartFile(MPI_Comm comm, const std::string &file, const char *option)
 {
   H5Reader in;

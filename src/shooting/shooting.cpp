@@ -62,25 +62,11 @@ PetscErrorCode Shooting::SetFromOptions()
                              "-analyses auto: after a converged statistical steady state with a periodic spectrum (one base f1), shoot "
                              "from its end state at T = 1 / f1 for the cycle and its Floquet multipliers",
                              "Shooting", after_steady, &after_steady, nullptr));
-  {
-    char      buf_file[PETSC_MAX_PATH_LEN] = "";
-    PetscBool set                          = PETSC_FALSE;
-    PetscCall(PetscOptionsString("-start",
-                                 "Start from a state in a squeal results file (.h5) instead of the energy estimate: a cycle's /shooting/Z0 "
-                                 "(again at other -shoot_steps), a settled transient's last record, a reduced cycle on the full model "
-                                 "(/expanded/Z0); its period is the start period unless -shoot_period is given",
-                                 "Shooting", start_file.c_str(), buf_file, sizeof buf_file, &set));
-    if (set) start_file = buf_file;
-    const char *const *froms = io::kStartSources;
-    PetscInt           from  = 0;
-    for (PetscInt i = 0; i < io::kNumStartSources; ++i)
-      if (start_from == froms[i]) from = i;
-    PetscCall(PetscOptionsEList("-start_from",
-                                "Which state of -shoot_start's file (auto: the first of transient, steady, shooting, expanded_end, expanded, energy with the "
-                                "model's number of DOFs)",
-                                "Shooting", froms, io::kNumStartSources, froms[from], &from, nullptr));
-    start_from = froms[from];
-  }
+  PetscCall(io::StartOptions(PetscOptionsObject, "Shooting",
+                             "Start from a state in a squeal results file (.h5) instead of the energy estimate: a cycle's /shooting/Z0 "
+                             "(again at other -shoot_steps), a settled transient's last record or a steady state's end, a reduced "
+                             "cycle on the full model (/expanded/Z0); its period is the start period unless -shoot_period is given",
+                             start_file, start_from));
   PetscCall(PetscOptionsBool("-fd_motion",
                              "Finite-difference steps of the flow derivatives relative to the motion's size |(omega_0 (U0 - U_e), dU0)| "
                              "(and the period's share) instead of ||Z0||",

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <petscsys.h>
+#include <petscviewer.h>
 
 #include <string>
 #include <vector>
@@ -35,6 +36,9 @@ extern const char *const kStartSources[kNumStartSources];
 // Collective; every rank gets the whole state.
 PetscErrorCode ReadStartState(MPI_Comm comm, const std::string &file, const std::string &from, PetscInt N, PetscInt nc,
                               const char *option, StartState &out);
+// Inside an options block (PetscOptionsBegin): -start FILE (help `help`) and -start_from under the
+// block's prefix, for `owner` (the manual page).
+PetscErrorCode StartOptions(PetscOptionItems *PetscOptionsObject, const char *owner, const char *help, std::string &file, std::string &from);
 // Opens `file` only: a missing or foreign file fails at option time, before any model work.
 PetscErrorCode CheckStartFile(MPI_Comm comm, const std::string &file, const char *option);
 
