@@ -92,6 +92,10 @@ PetscErrorCode FloquetSolver::SetFromOptions()
                             "FloquetSolver", block, &block, nullptr));
   PetscCall(PetscOptionsBool("-monitor", "Print the block Arnoldi's progress", "FloquetSolver", monitor, &monitor, nullptr));
   PetscCall(PetscOptionsInt("-max_dim", "Block Arnoldi: largest Krylov basis (columns)", "FloquetSolver", max_dim, &max_dim, nullptr));
+  SquealOptionsReal("-max_dim_extend",
+                    "Block Arnoldi: past -floquet_max_dim, go on up to this fraction more columns where the residuals, falling "
+                    "geometrically as between the last two checks, reach the tolerance within them (0: a hard cap)",
+                    "FloquetSolver", &max_dim_extend, Range::NonNegative(), checks);
   SquealOptionsReal("-tol", "Block Arnoldi: relative residual of the -floquet_nev largest multipliers", "FloquetSolver", &tol,
                     Range::Positive(), checks);
   SquealOptionsReal("-tol_error",
@@ -709,9 +713,12 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
     products_ = 1;
     PetscFunctionReturn(0);
   }
-  // Blocks of the Krylov basis: up to -floquet_max_dim columns, and never past the space.
+  // Blocks of the Krylov basis: up to -floquet_max_dim columns, and never past the space; past the
+  // cap up to mext blocks only where the residuals are about to reach the tolerance.
   const Index mmax = std::max<Index>(1, std::min<Index>(max_dim / b, n / b - 1));
-  MatrixXd    V(n, (mmax + 1) * b), H = MatrixXd::Zero((mmax + 1) * b, mmax * b), W, C;
+  const Index mext = std::max(mmax, std::min<Index>((Index)std::floor((1 + max_dim_extend) * (PetscReal)max_dim / (PetscReal)b), n / b - 1));
+  Index       mlimit = mmax;
+  MatrixXd    V(n, (mext + 1) * b), H = MatrixXd::Zero((mext + 1) * b, mext * b), W, C;
   {
     // The same pseudo-random start on every rank (every rank holds the whole basis).
     std::mt19937                     gen(2027);
@@ -728,7 +735,7 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
   PetscInt                             used = 0;
   Index                                last_check = 0, prev_check = 0, next_check = 1; // in blocks
   PetscReal                            stop = tol, last_worst = 0, prev_worst = 0;
-  for (Index j = 0; j < mmax; ++j) {
+  for (Index j = 0; j < mlimit; ++j) {
     // On D M D^-1, D = diag(w I, I), w = 2 pi / T: same multipliers, but displacement and velocity
     // columns of one size (M itself mixes them by factors of w ~ 1e3-1e5), which is far closer to
     // normal, and Arnoldi's residuals then mean what they say.
@@ -757,7 +764,7 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
     // pad_cycle.yaml 7.0e-5 at 22 blocks and 6.7e-7 at 26, with 1.5e-5 asked.
     // An invariant subspace: the Ritz values are exact (and the next block would not be orthogonal).
     const bool invariant = R.diagonal().cwiseAbs().minCoeff() <= 1e-13 * H.topLeftCorner(k, k).norm();
-    if (!invariant && j + 1 < mmax && j + 1 > 8 && j + 1 < next_check) continue;
+    if (!invariant && j + 1 < mlimit && j + 1 > 8 && j + 1 < next_check) continue;
     prev_check = last_check, prev_worst = last_worst;
     last_check      = j + 1;
     PetscReal worst = 0;
@@ -772,10 +779,21 @@ PetscErrorCode FloquetSolver::BlockArnoldi(std::vector<std::complex<PetscReal>> 
     stop = FloquetArnoldiTolerance(tol, tol_error, ritz);
     if ((k >= nev && worst <= stop) || invariant) break;
     next_check = FloquetNextCheck(j + 1, prev_check, prev_worst, worst, stop);
-    if (j + 1 == mmax) {
+    if (j + 1 == mmax && mext > mmax) {
+      // At the cap: on only if the residuals' decay reaches the tolerance within the extension.
+      const Index reach = FloquetBlocksToReach(j + 1, prev_check, prev_worst, worst, stop);
+      if (reach > j + 1 && reach <= mext) {
+        mlimit = reach;
+        if (mon)
+          PetscCall(PetscPrintf(s.comm_, "  Floquet block Arnoldi: past -floquet_max_dim %" PetscInt_FMT ": the residuals reach %.1e at %" PetscInt_FMT " blocks (-floquet_max_dim_extend)\n",
+                                max_dim, (double)stop, (PetscInt)reach));
+        continue;
+      }
+    }
+    if (j + 1 == mlimit) {
       char msg[200];
       std::snprintf(msg, sizeof msg, "Floquet block Arnoldi: the %d largest multipliers reached a relative residual of %.1e, not %.1e, "
-                    "in %d columns (-floquet_max_dim)", (int)nev, (double)worst, (double)stop, (int)k);
+                    "in %d columns (-floquet_max_dim%s)", (int)nev, (double)worst, (double)stop, (int)k, mlimit > mmax ? ", -floquet_max_dim_extend" : "");
       PetscCall(PetscPrintf(s.comm_, "shooting: warning: %s\n", msg));
     }
   }
@@ -794,6 +812,14 @@ Eigen::Index FloquetNextCheck(Eigen::Index blocks, Eigen::Index prev_blocks, Pet
   const PetscReal rate   = std::pow(worst / prev_worst, 1.0 / (PetscReal)(blocks - prev_blocks));
   const PetscReal needed = std::ceil(std::log(stop / worst) / std::log(rate));
   return blocks + (std::isfinite(needed) ? (Eigen::Index)std::clamp<PetscReal>(needed, 1, (PetscReal)cadence) : cadence);
+}
+
+Eigen::Index FloquetBlocksToReach(Eigen::Index blocks, Eigen::Index prev_blocks, PetscReal prev_worst, PetscReal worst, PetscReal stop)
+{
+  if (prev_blocks <= 0 || prev_blocks >= blocks || !(worst > stop) || !(prev_worst > worst) || !(stop > 0)) return 0;
+  const PetscReal rate   = std::pow(worst / prev_worst, 1.0 / (PetscReal)(blocks - prev_blocks));
+  const PetscReal needed = std::ceil(std::log(stop / worst) / std::log(rate));
+  return std::isfinite(needed) && needed >= 1 && needed < 1e6 ? blocks + (Eigen::Index)needed : 0;
 }
 
 PetscReal FloquetArnoldiTolerance(PetscReal tol, PetscReal tol_error, const std::vector<std::complex<PetscReal>> &ritz)

@@ -1142,6 +1142,19 @@ TEST(Floquet, ArnoldiChecksSoonerWhereTheResidualsDecayReachesTheTolerance)
   EXPECT_EQ(FloquetNextCheck(40, 35, 1e-3, 9e-4, 1e-8), 46);    // slow decay: the cadence bounds it
 }
 
+// Past -floquet_max_dim only where the residuals are about to reach the tolerance: the size-1
+// brake's 1.67e-3 at 35 blocks and 1.56e-4 at the cap, 40, fall 0.62 a block, so 7e-6 at 47
+// (it converged at 46, 3.2e-6); a flat, rising or first check gives no reach.
+TEST(Floquet, ArnoldiGoesPastItsCapOnlyWhereTheResidualsReachTheTolerance)
+{
+  EXPECT_EQ(FloquetBlocksToReach(40, 35, 1.67e-3, 1.56e-4, 7e-6), 47);
+  EXPECT_EQ(FloquetBlocksToReach(40, 35, 1.0e-2, 9.6e-3, 7e-6), 925); // 0.992 a block: far past 60, the default extension
+  EXPECT_EQ(FloquetBlocksToReach(40, 35, 1e-2, 1e-2, 1e-5), 0);             // flat
+  EXPECT_EQ(FloquetBlocksToReach(40, 35, 1e-3, 1e-2, 1e-5), 0);             // rising
+  EXPECT_EQ(FloquetBlocksToReach(40, 0, 0.0, 1e-2, 1e-5), 0);               // no check before
+  EXPECT_EQ(FloquetBlocksToReach(40, 35, 1e-3, 1e-6, 1e-5), 0);             // already there
+}
+
 TEST(Floquet, ReportSaysWhenTheTrivialMultiplierIsNotAmongThoseComputed)
 {
   auto report = [](const std::vector<std::complex<PetscReal>> &L, PetscInt trivial) {
