@@ -355,7 +355,8 @@ PetscErrorCode CycleAfterSteady(Pipeline &p, io::H5Writer &out, const Stages &st
   PetscCall(PetscLogStagePop());
   PetscCheck(err != PETSC_ERR_SIG, comm, PETSC_ERR_SIG, "interrupted by %s during the shooting after the steady state", InterruptSignalName());
   if (err && err != PETSC_ERR_NOT_CONVERGED) SETERRQ(comm, err, "auto: shooting after the steady state failed: %s", p.cycle.reason.c_str());
-  if (returned) { // Newton ran: its cycle or best iterate
+  if (returned) { // Newton ran: its cycle or best iterate, in place of a failed Newton's from the route's pre-periods
+    for (const char *g_old : {"/shooting", "/expanded/orbit", "/expanded/Z0"}) PetscCall(out.Remove(g_old));
     PetscCall(sh.Write(p.cycle, out));
     PetscCall(WriteExpandedOrbit(p.model, p.cycle, out));
   }

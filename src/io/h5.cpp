@@ -303,6 +303,24 @@ PetscErrorCode H5Writer::WriteVec(const char *group, Vec v)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode H5Writer::Remove(const char *path)
+{
+  PetscFunctionBeginUser;
+  PetscCall(CheckOpen());
+  if (rank_ == 0 && err_.empty()) {
+    // H5Lexists needs every parent to exist: walk the path.
+    const std::string p(path);
+    bool              exists = true;
+    for (size_t k = p.find('/', 1); exists; k = p.find('/', k + 1)) {
+      exists = H5Lexists(file_, p.substr(0, k).c_str(), H5P_DEFAULT) > 0;
+      if (k == std::string::npos) break;
+    }
+    if (exists && H5Ldelete(file_, path, H5P_DEFAULT) < 0) Fail(("remove " + p).c_str());
+  }
+  PetscCall(Sync());
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode H5Writer::WriteArray(const char *path, const std::vector<hsize_t> &dims, const PetscReal *data)
 {
   PetscFunctionBeginUser;

@@ -77,6 +77,32 @@ TEST(H5Writer, ArraysAttributesAndVecsReadBack)
   }
 }
 
+// A result written again (-analyses auto: shooting after the steady state, where Newton from the
+// route's pre-periods had failed): the group removed first, the second write alone remains.
+TEST(H5Writer, ARemovedGroupIsWrittenAgainAlone)
+{
+  const std::string path = testing::TempDir() + "squeal_h5_remove.h5";
+  {
+    io::H5Writer out;
+    ASSERT_EQ(out.Open(PETSC_COMM_WORLD, path.c_str()), 0);
+    const double a[2] = {1, 2}, b[3] = {3, 4, 5};
+    ASSERT_EQ(out.WriteArray("/shooting/Z0", {2}, a), 0);
+    ASSERT_EQ(out.WriteArray("/shooting/floquet", {2}, a), 0);
+    ASSERT_EQ(out.Remove("/shooting"), 0);
+    ASSERT_EQ(out.Remove("/absent/group"), 0); // nothing to remove: no error
+    ASSERT_EQ(out.WriteArray("/shooting/Z0", {3}, b), 0);
+    ASSERT_EQ(out.Close(), 0);
+  }
+  io::H5Reader in;
+  ASSERT_EQ(in.Open(PETSC_COMM_WORLD, path.c_str(), "-test"), 0);
+  std::vector<hsize_t> dims;
+  ASSERT_EQ(in.Dims("/shooting/floquet", dims), 0);
+  EXPECT_TRUE(dims.empty());
+  std::vector<PetscReal> z;
+  ASSERT_EQ(in.Read("/shooting/Z0", z), 0);
+  EXPECT_EQ(z, (std::vector<PetscReal>{3, 4, 5}));
+}
+
 // An empty list attribute (a steady state interrupted before its spectrum has bases) is written as a
 // zero-length attribute, not an HDF5 error that loses the analysis' other results.
 TEST(H5Writer, AnEmptyListAttributeIsZeroLength)

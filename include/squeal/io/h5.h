@@ -59,6 +59,9 @@ public:
   // Dense row-major array of doubles (data read on rank 0 only), any rank of dims.
   PetscErrorCode WriteArray(const char *path, const std::vector<hsize_t> &dims, const PetscReal *data);
   PetscErrorCode WriteIntArray(const char *path, const std::vector<hsize_t> &dims, const PetscInt *data);
+  // Removes the group or dataset `path` if the file has it (a result written again: the second
+  // attempt's datasets only, none of the first's). Collective.
+  PetscErrorCode Remove(const char *path);
   // Attributes on a group or dataset (created as a group if missing). Values are taken from rank 0.
   PetscErrorCode WriteAttribute(const char *object, const char *name, PetscReal value);
   PetscErrorCode WriteAttribute(const char *object, const char *name, PetscInt value);
