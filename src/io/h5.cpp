@@ -93,6 +93,18 @@ std::string RootStringAttribute(hid_t f, const char *name)
   return ok ? std::string(buf) : std::string();
 }
 
+// Whether the open file `f` has the object `path` (absolute): H5Lexists needs every parent to exist,
+// so the path is walked from the root.
+bool PathExists(hid_t f, const std::string &path)
+{
+  bool exists = true;
+  for (size_t k = path.find('/', 1); exists; k = path.find('/', k + 1)) {
+    exists = H5Lexists(f, path.substr(0, k).c_str(), H5P_DEFAULT) > 0;
+    if (k == std::string::npos) break;
+  }
+  return exists;
+}
+
 } // namespace
 
 bool H5Writer::IsResultsFile(const char *path)
@@ -307,16 +319,8 @@ PetscErrorCode H5Writer::Remove(const char *path)
 {
   PetscFunctionBeginUser;
   PetscCall(CheckOpen());
-  if (rank_ == 0 && err_.empty()) {
-    // H5Lexists needs every parent to exist: walk the path.
-    const std::string p(path);
-    bool              exists = true;
-    for (size_t k = p.find('/', 1); exists; k = p.find('/', k + 1)) {
-      exists = H5Lexists(file_, p.substr(0, k).c_str(), H5P_DEFAULT) > 0;
-      if (k == std::string::npos) break;
-    }
-    if (exists && H5Ldelete(file_, path, H5P_DEFAULT) < 0) Fail(("remove " + p).c_str());
-  }
+  if (rank_ == 0 && err_.empty() && PathExists(file_, path) && H5Ldelete(file_, path, H5P_DEFAULT) < 0)
+    Fail((std::string("remove ") + path).c_str());
   PetscCall(Sync());
   PetscFunctionReturn(0);
 }
@@ -456,14 +460,8 @@ PetscErrorCode H5Reader::Dims(const char *name, std::vector<hsize_t> &dims)
   PetscFunctionBeginUser;
   dims.clear();
   if (rank_ == 0 && file_ >= 0) {
-    // H5Lexists on "/a/b" needs "/a" to exist: walk the path.
     const std::string p(name);
-    bool              exists = true;
-    for (size_t k = p.find('/', 1); exists; k = p.find('/', k + 1)) {
-      exists = H5Lexists(file_, p.substr(0, k).c_str(), H5P_DEFAULT) > 0;
-      if (k == std::string::npos) break;
-    }
-    if (exists && H5Oexists_by_name(file_, name, H5P_DEFAULT) > 0) {
+    if (PathExists(file_, p) && H5Oexists_by_name(file_, name, H5P_DEFAULT) > 0) {
       const hid_t d = H5Dopen2(file_, name, H5P_DEFAULT);
       const hid_t s = d >= 0 ? H5Dget_space(d) : -1;
       nd            = s >= 0 ? H5Sget_simple_extent_ndims(s) : -1;
@@ -525,7 +523,7 @@ PetscErrorCode H5Reader::ReadScalar(const char *name, const char *attr, PetscRea
 {
   PetscReal x[2] = {0, 0}; // value, found
   PetscFunctionBeginUser;
-  if (rank_ == 0 && file_ >= 0 && H5Lexists(file_, name, H5P_DEFAULT) > 0) {
+  if (rank_ == 0 && file_ >= 0 && PathExists(file_, name)) {
     double val = 0;
     if (attr) {
       if (H5Aexists_by_name(file_, name, attr, H5P_DEFAULT) > 0) {
