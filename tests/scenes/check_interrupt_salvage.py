@@ -37,9 +37,22 @@ def salvaged(checks, path, d, tag):
     ok = os.path.exists(path)
     checks.append((ok, f"{tag}: {path} exists"))
     if ok:
-        with Results(path) as r:
-            status = r.status
-            value = float(r.stability.attrs["value"])
+        # Under mpiexec the killed rank can still hold HDF5's lock on the file for a moment after
+        # mpiexec returns (a fresh-clone CI run, 2026-11-30: errno 11 at the first open): the claim is
+        # a readable file once the rank is gone, so the open waits up to 10 s for the lock.
+        t0 = time.time()
+        while True:
+            try:
+                with Results(path) as r:
+                    status = r.status
+                    value = float(r.stability.attrs["value"])
+                break
+            except BlockingIOError:
+                if time.time() - t0 > 10:
+                    raise
+                time.sleep(0.1)
+        if time.time() - t0 > 0.05:
+            print(f"{tag}: the file's lock was released {time.time() - t0:.2f} s after the run ended")
         checks.append((status == "running (complete up to the stability analysis)", f"{tag}: status '{status}'"))
         checks.append((value == 42.0, f"{tag}: /stability value {value}"))
     checks.append((not glob.glob(os.path.join(d, ".salvage.h5.part-*")), f"{tag}: no temporary left"))
