@@ -13,11 +13,23 @@ namespace squeal {
 
 PetscReal ContinuationPoint::LargestNonTrivial() const
 {
+  if (floquet.empty()) return NAN; // not computed (-floquet_compute 0)
   PetscReal m = 0;
   for (size_t i = 0; i < floquet.size(); ++i)
     if ((PetscInt)i != trivial) m = std::max(m, std::abs(floquet[i]));
   return m;
 }
+
+namespace {
+// The monitor's stability column: "max|L| = 0.9996 stable", or that the multipliers were not asked for.
+std::string Multipliers(const ContinuationPoint &p)
+{
+  if (p.floquet.empty()) return "multipliers not computed";
+  char b[64];
+  std::snprintf(b, sizeof b, "max|L| = %.4f %s", (double)p.LargestNonTrivial(), p.stable_cycle ? "stable" : "UNSTABLE");
+  return b;
+}
+} // namespace
 
 struct ContinuationCallbacks {
   // Product of the bordered Jacobian [dH/d(Z0,T) dH/dlambda; t^T S]: one flow for the (Z0, T)
@@ -56,7 +68,7 @@ struct ContinuationCallbacks {
 PetscErrorCode Continuation::SetFromOptions()
 {
   OptionChecks checks;
-  char         name[16] = "mu";
+  char         name[16] = "mu", corr[16] = "auto";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm_, "cont_", "Continuation of the limit cycle in mu or V", "Continuation");
   PetscCall(PetscOptionsString("-param", "Continuation parameter: mu or v", "Continuation", name, name, sizeof(name), nullptr));
@@ -80,6 +92,10 @@ PetscErrorCode Continuation::SetFromOptions()
   PetscCall(PetscOptionsBool("-both", "Both directions from the start point (else towards -cont_max only)", "Continuation", both,
                              &both, nullptr));
   PetscCall(PetscOptionsBool("-monitor", "One progress line per point", "Continuation", monitor, &monitor, nullptr));
+  PetscCall(PetscOptionsString("-corrector",
+                               "arclength (Newton in (Z0, T, lambda), GMRES without preconditioner: passes folds), parameter (shooting's own Newton "
+                               "at the predicted lambda, its tangents and preconditioner), or auto (arclength where shooting's Jacobian is dense)",
+                               "Continuation", corr, corr, sizeof(corr), nullptr));
   PetscCall(PetscOptionsInt("-slices", "Parameter slices computed by groups of ranks, each from its own shooting solution at its upper end",
                             "Continuation", slices, &slices, nullptr));
   PetscCall(PetscOptionsInt("-fail_step", "Testing: declare the corrector of this step failed once (-1: never)", "Continuation",
@@ -88,6 +104,9 @@ PetscErrorCode Continuation::SetFromOptions()
   PetscCall(checks.Run(comm_));
   param = name;
   PetscCheck(param == "mu" || param == "v", comm_, kErrInput, "option -cont_param = '%s': expected mu or v", name);
+  corrector = corr;
+  PetscCheck(corrector == "auto" || corrector == "arclength" || corrector == "parameter", comm_, kErrInput,
+             "option -cont_corrector = '%s': expected arclength, parameter or auto", corr);
   if (lmin == -kInf) lmin = param == "mu" ? 0.0 : 0.1;
   if (lmax == kInf) lmax = param == "mu" ? 0.6 : 10.0;
   PetscCheck(lmin < lmax, comm_, kErrInput, "options -cont_min = %g, -cont_max = %g: expected min < max", (double)lmin, (double)lmax);
@@ -350,7 +369,7 @@ PetscErrorCode Continuation::CorrectorIterations(const State &last, const State 
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Continuation::Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why)
+PetscErrorCode Continuation::Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why, bool multipliers)
 {
   SlidingEquilibrium eq;
   ShootingResult     sr;
@@ -389,9 +408,16 @@ PetscErrorCode Continuation::Polish(const State &y, ContinuationPoint &pt, State
   // The point's Newton iterations and Floquet multipliers are most of its time: a signal there
   // fails this point only (the branch so far is kept) and the leg stops at its next poll.
   shoot_->interruptible = true;
+  // The multipliers are most of a point's time on an FE model (the half brake: about 10 of 16 s),
+  // and a point that the step control then rejects, or a bisection's, does not need them.
+  PetscBool      &compute = shoot_->Floquet().compute;
+  const PetscBool asked   = compute;
+  compute                 = (PetscBool)(asked && multipliers);
   PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
   err = shoot_->Solve(*model_, eq, *ti_, y.U, y.dU, y.T, sr);
   PetscCall(PetscPopErrorHandler());
+  const bool want       = compute;
+  compute               = asked;
   shoot_->interruptible = false;
   flows_ += sr.flow_evaluations;
   if (err == PETSC_ERR_SIG) { // collective: InterruptPoint decides on every rank alike
@@ -400,10 +426,12 @@ PetscErrorCode Continuation::Polish(const State &y, ContinuationPoint &pt, State
     PetscFunctionReturn(0);
   }
   if (err || !sr.converged) {
-    why = "shooting at the corrected point: " + (sr.reason.empty() ? std::string("error ") + std::to_string(err) : sr.reason);
+    char at[64];
+    std::snprintf(at, sizeof at, "shooting at %s = %.6f: ", param.c_str(), (double)y.lambda);
+    why = at + (sr.reason.empty() ? std::string("error ") + std::to_string(err) : sr.reason);
     PetscFunctionReturn(0);
   }
-  if (sr.floquet.empty()) {
+  if (sr.floquet.empty() && want) {
     why = "no Floquet multipliers";
     PetscFunctionReturn(0);
   }
@@ -474,19 +502,25 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
         sts.emplace_back();
         PetscCall(Copy(y, sts.back()));
         if (monitor)
-          PetscCall(PetscPrintf(comm_, "cont %c%3zu: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  max|L| = %.4f %s  (end of range)\n",
+          PetscCall(PetscPrintf(comm_, "cont %c%3zu: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  %s  (end of range)\n",
                                 dir > 0 ? '+' : '-', pts.size(), param.c_str(), (double)pt.param, (double)pt.period, (double)pt.amplitude,
-                                100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, (double)pt.LargestNonTrivial(),
-                                pt.stable_cycle ? "stable" : "UNSTABLE"));
+                                100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, Multipliers(pt).c_str()));
         end = "reached the end of the range";
       } else end = interrupted_ ? why : "the shooting solve on the end of the range failed: " + why;
       break;
     }
     PetscInt    its = 0;
     std::string why;
+    bool        ok = false;
     ++step_count_;
-    PetscCall(Corrector(last, pred, t, y, &its, why));
-    if (why.empty() && step_count_ == fail_step) why = "declared failed by -cont_fail_step (test)";
+    if (by_parameter_) {
+      // The point is shooting's solution at the predicted parameter, from the predicted (Z0, T);
+      // its multipliers once the step control below accepts it.
+      PetscCall(Polish(pred, pt, &y, &ok, why, false));
+      its = pt.newton_iterations;
+      if (!ok && why.empty()) why = "shooting failed";
+    } else PetscCall(Corrector(last, pred, t, y, &its, why));
+    if (why.empty() && step_count_ == fail_step) why = "declared failed by -cont_fail_step (test)", ok = false;
     if (why.empty() && have_prev) {
       // Step control by the predictor error (not on the first step: a pure parameter step): a corrected point farther than ds / 2 from the
       // predictor means the branch curves more than the step resolves, or the corrector jumped to
@@ -507,8 +541,13 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
         why = msg;
       }
     }
-    bool ok = false;
-    if (why.empty()) PetscCall(Polish(y, pt, nullptr, &ok, why));
+    if (!why.empty()) ok = false;
+    else if (!by_parameter_) PetscCall(Polish(y, pt, nullptr, &ok, why));
+    else if (shoot_->Floquet().compute) {
+      State sol; // Newton from its own solution: the residual's check, then the multipliers
+      PetscCall(Polish(y, pt, &sol, &ok, why));
+      if (ok) PetscCall(Copy(sol, y));
+    }
     if (interrupted_) {
       end = std::string("interrupted by ") + InterruptSignalName();
       break;
@@ -532,10 +571,9 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
     sts.emplace_back();
     PetscCall(Copy(y, sts.back()));
     if (monitor)
-      PetscCall(PetscPrintf(comm_, "cont %c%3zu: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  max|L| = %.4f %s  %" PetscInt_FMT " its  ds %.3e  %.2f s\n",
+      PetscCall(PetscPrintf(comm_, "cont %c%3zu: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  %s  %" PetscInt_FMT " its  ds %.3e  %.2f s\n",
                             dir > 0 ? '+' : '-', pts.size(), param.c_str(), (double)pt.param, (double)pt.period, (double)pt.amplitude,
-                            100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, (double)pt.LargestNonTrivial(),
-                            pt.stable_cycle ? "stable" : "UNSTABLE", its, (double)h, (double)pt.seconds));
+                            100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, Multipliers(pt).c_str(), its, (double)h, (double)pt.seconds));
     if (amp_start < 0) amp_start = pt.amplitude, growth_start = pt.max_growth;
     // The cycle shrinking onto the equilibrium: the Hopf point, where this branch is born. There
     // the equilibrium's growth rate goes to zero with the amplitude (as its square at a smooth
@@ -639,6 +677,15 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     // range (with -cont_max 1e6 the first step of ds = 0.05 jumped 5e4 m/s, to the range's end).
     sT_ = s0.T, sl_ = std::min(lmax - lmin, param == "mu" ? (PetscReal)0.6 : (PetscReal)10.0);
   }
+  // The arclength corrector's GMRES has no preconditioner: on the half brake (N = 782, multipliers
+  // 0.9993-0.9998) it broke down at every step from ds = 0.02 down to 1.6e-4. Shooting's own Newton
+  // converges there (exact tangents, the linear-monodromy preconditioner).
+  by_parameter_ = corrector == "parameter" || (corrector == "auto" && 2 * model.Size() + 1 > shoot.jacobian_dense_max);
+  if (by_parameter_)
+    PetscCall(PetscPrintf(comm_,
+                          "cont: corrector: shooting at the predicted %s (-cont_corrector %s%s); folds in %s are not passed, -cont_corrector "
+                          "arclength passes them\n",
+                          param.c_str(), corrector.c_str(), corrector == "auto" ? ": N > -shoot_jacobian_dense_max / 2" : "", param.c_str()));
   // Work space of the corrector: the shooting state (U, dU, T) and the bordered one (+ lambda).
   PetscMPIInt rank, size;
   PetscInt    nx, Nx;
@@ -657,9 +704,9 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   PetscCall(KSPSetOperators(ksp_, J_, J_));
 
   if (monitor)
-    PetscCall(PetscPrintf(comm_, "cont start: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  max|L| = %.4f %s\n",
+    PetscCall(PetscPrintf(comm_, "cont start: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  %s\n",
                           param.c_str(), (double)p0.param, (double)p0.period, (double)p0.amplitude, 100 * (double)p0.frac_separated,
-                          100 * (double)p0.frac_stuck, (double)p0.LargestNonTrivial(), p0.stable_cycle ? "stable" : "UNSTABLE"));
+                          100 * (double)p0.frac_stuck, Multipliers(p0).c_str()));
   std::vector<ContinuationPoint> down, up;
   std::vector<State>             sdown, sup;
   std::string                    end_down, end_up;
@@ -730,10 +777,13 @@ PetscErrorCode Continuation::View(const ContinuationResult &res, PetscViewer vie
   }
   PetscCall(PetscViewerASCIIPrintf(viewer, "%10s %12s %12s %7s %7s %9s %9s %s\n", res.param_name.c_str(), "T (s)", "ampl. (m)", "sep %",
                                    "stick %", "max|L|", "eq. unst", "cycle"));
-  for (auto &p : res.points)
-    PetscCall(PetscViewerASCIIPrintf(viewer, "%10.6f %12.8f %12.4e %7.1f %7.1f %9.4f %9" PetscInt_FMT " %s\n", (double)p.param,
-                                     (double)p.period, (double)p.amplitude, 100 * (double)p.frac_separated, 100 * (double)p.frac_stuck,
-                                     (double)p.LargestNonTrivial(), p.equilibrium_unstable, p.stable_cycle ? "stable" : "UNSTABLE"));
+  for (auto &p : res.points) {
+    char lmax[16] = "-";
+    if (!p.floquet.empty()) std::snprintf(lmax, sizeof lmax, "%.4f", (double)p.LargestNonTrivial());
+    PetscCall(PetscViewerASCIIPrintf(viewer, "%10.6f %12.8f %12.4e %7.1f %7.1f %9s %9" PetscInt_FMT " %s\n", (double)p.param,
+                                     (double)p.period, (double)p.amplitude, 100 * (double)p.frac_separated, 100 * (double)p.frac_stuck, lmax,
+                                     p.equilibrium_unstable, p.Verdict()));
+  }
   for (auto &e : res.events)
     PetscCall(PetscViewerASCIIPrintf(viewer, "event %-16s %s = %.6f  (in [%.6f, %.6f])%s%s\n", e.type.c_str(), res.param_name.c_str(),
                                      (double)e.param, (double)e.lo, (double)e.hi, e.detail.empty() ? "" : ": ", e.detail.c_str()));

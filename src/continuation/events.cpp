@@ -46,7 +46,7 @@ PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &
     // corrector from the straight line between the two bracket solutions.
     PetscCall(Copy(slo, g));
     g.lambda = mid;
-    PetscCall(Polish(g, pt, &sol, &ok, why));
+    PetscCall(Polish(g, pt, &sol, &ok, why, false)); // only the contact's regime is looked at
     if (!ok) {
       why = "shooting from the lower end: " + why;
       std::string why2;
@@ -60,7 +60,7 @@ PetscErrorCode Continuation::Locate(ContinuationResult &res, ContinuationEvent &
         break;
       }
       ok = why2.empty();
-      if (ok) PetscCall(Polish(y, pt, &sol, &ok, why2));
+      if (ok) PetscCall(Polish(y, pt, &sol, &ok, why2, false));
       if (!ok) why += "; corrector: " + why2;
     }
     if (!ok) {

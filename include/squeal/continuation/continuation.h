@@ -8,7 +8,12 @@
 // lambda by the range, all at the start point), y_pred = y_last + ds t. The bordered Jacobian is
 // a MatShell: one finite-difference flow per product for (Z0, T), one extra flow per iteration for
 // d/dlambda; GMRES without preconditioner (-cont_ksp_*). Folds are passed because lambda is an
-// unknown. A converged corrector is polished by Shooting::Solve at its lambda (one correction),
+// unknown. That GMRES converges only on small models: on FE models (the half brake, N = 782) it
+// broke down at every step size, since the cycle's multipliers crowd 1. There (-cont_corrector
+// parameter, the default where shooting's Jacobian is not dense) a point is shooting's own Newton
+// at the predicted lambda from the predicted (Z0, T): its exact tangents and linear-monodromy
+// preconditioner, so a step costs what a shooting solve from a close start costs, but folds in
+// lambda are not passed (the leg stops there with the reason). A converged corrector is polished by Shooting::Solve at its lambda (one correction),
 // which also gives the Floquet multipliers (phase-averaged route) and the orbit summary, so every
 // point IS a stand-alone shooting solution. A failed step halves ds (and says so); below
 // -cont_ds_min the leg stops and what was computed is kept.
@@ -52,7 +57,8 @@ struct ContinuationPoint {
   PetscReal                            ds = 0, seconds = 0;
   PetscInt                             leg = 0; // -1 towards -cont_min, 0 start, +1 towards -cont_max
   PetscInt                             slice = 0; // -cont_slices: the parameter slice that computed it
-  PetscReal LargestNonTrivial() const;
+  PetscReal   LargestNonTrivial() const;
+  const char *Verdict() const { return floquet.empty() ? "not computed" : stable_cycle ? "stable" : "UNSTABLE"; } // -floquet_compute 0: none
 };
 
 struct ContinuationEvent {
@@ -115,6 +121,7 @@ public:
   PetscReal   lmin = -kInf, lmax = kInf; // defaults: mu [0, 0.6], v [0.1, 10]
   PetscReal   ds = 0.02, ds_min = 1e-4, ds_max = 0.1, locate_tol = 1e-4, jump_tol = 0.2, min_amplitude = 0.02;
   PetscInt    max_steps = 200, max_it = 12;
+  std::string corrector = "auto"; // -cont_corrector arclength|parameter|auto
   // -cont_slices k: [min, max] cut into k equal slices, each continued downwards from a shooting
   // solution (energy estimate) at its upper end by a group of ranks (MPI_Comm_split, size / k each;
   // a group computes several slices in turn when k > size); the points gathered into one branch.
@@ -135,11 +142,13 @@ private:
   PetscReal      GetParam(const Model &model) const;
   PetscErrorCode RunSlices(ContinuationResult &res);
   bool           down_only_ = false; // a slice: from its upper end towards -cont_min only
+  bool           by_parameter_ = false; // the corrector is shooting at the predicted parameter (Run decides)
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
   PetscErrorCode CorrectorIterations(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its,
                                      std::string &why);
-  // Shooting::Solve at y.lambda from y, with the equilibrium (and its stability) there.
-  PetscErrorCode Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why);
+  // Shooting::Solve at y.lambda from y, with the equilibrium (and its stability) there; the Floquet
+  // multipliers only if `multipliers` (and -floquet_compute).
+  PetscErrorCode Polish(const State &y, ContinuationPoint &pt, State *sol, bool *ok, std::string &why, bool multipliers = true);
   PetscErrorCode Leg(int dir, const State &start, std::vector<ContinuationPoint> &pts, std::vector<State> &sts, std::string &end);
   PetscErrorCode FromRank0(const std::vector<PetscReal> &Z0, State &s) const;
   PetscErrorCode FillPoint(const ShootingResult &sr, ContinuationPoint &pt) const;
