@@ -43,7 +43,8 @@ struct ContinuationCallbacks {
     PetscCall(MatShellGetContext(J, &c));
     PetscCall(c->FromExt(v, c->vx_, &vl));
     PetscCall(VecNorm(c->vx_, NORM_2, &nv));
-    if (nv > 0) {
+    if (c->precond_) PetscCall(c->shoot_->JacobianProduct(c->x_, c->vx_, c->fp_)); // exact tangent along the flow at x_
+    else if (nv > 0) {
       PetscCall(VecNorm(c->x_, NORM_2, &nx));
       const PetscReal eps = c->shoot_->fd_step * nx / nv;
       PetscCall(VecWAXPY(c->xp_, eps, c->vx_, c->x_));
@@ -53,17 +54,42 @@ struct ContinuationCallbacks {
       PetscCall(VecScale(c->fp_, 1.0 / eps));
     } else PetscCall(VecZeroEntries(c->fp_));
     PetscCall(VecAXPY(c->fp_, vl, c->fl_));
-    PetscReal   vT;
-    PetscScalar d1, d2;
-    PetscCall(c->shoot_->Unpack(c->vx_, c->wU_, c->wdU_, &vT));
-    PetscCall(VecDot(c->wU_, c->tan_->U, &d1));
-    PetscCall(VecDot(c->wdU_, c->tan_->dU, &d2));
-    a = PetscRealPart(d1) / (c->su_ * c->su_) + PetscRealPart(d2) / (c->sdu_ * c->sdu_) + vT * c->tan_->T / (c->sT_ * c->sT_) +
-        vl * c->tan_->lambda / (c->sl_ * c->sl_);
-    PetscCall(c->ToExt(c->fp_, a, y));
+    PetscCall(c->RowDot(c->vx_, &a));
+    PetscCall(c->ToExt(c->fp_, a + vl * c->row_l_, y));
+    PetscFunctionReturn(0);
+  }
+
+  // [P^-1 b; c^T d]^-1 by its Schur complement, P shooting's preconditioner of the (Z0, T) block, b =
+  // dH/dlambda, (c, d) the arclength row: xi = (rho - c^T P^-1 r) / (d - c^T P^-1 b), x = P^-1 r - xi P^-1 b.
+  // Exact where P is the Jacobian's inverse.
+  static PetscErrorCode Precondition(PC pc, Vec v, Vec y)
+  {
+    Continuation *c;
+    PetscReal     rho, a;
+    PetscFunctionBeginUser;
+    PetscCall(PCShellGetContext(pc, &c));
+    PetscCall(c->FromExt(v, c->vx_, &rho));
+    PetscCall(c->shoot_->ApplyPreconditioner(c->vx_, c->wx_));
+    PetscCall(c->RowDot(c->wx_, &a));
+    const PetscReal den = c->row_l_ - c->cz_;
+    const PetscReal xi  = den != 0 ? (rho - a) / den : 0.0;
+    PetscCall(VecAXPY(c->wx_, -xi, c->pz_));
+    PetscCall(c->ToExt(c->wx_, xi, y));
     PetscFunctionReturn(0);
   }
 };
+
+PetscErrorCode Continuation::RowDot(Vec vx, PetscReal *a) const
+{
+  PetscReal   vT;
+  PetscScalar d1, d2;
+  PetscFunctionBeginUser;
+  PetscCall(shoot_->Unpack(vx, wU_, wdU_, &vT));
+  PetscCall(VecDot(wU_, tan_->U, &d1));
+  PetscCall(VecDot(wdU_, tan_->dU, &d2));
+  *a = PetscRealPart(d1) / (su_ * su_) + PetscRealPart(d2) / (sdu_ * sdu_) + vT * tan_->T / (sT_ * sT_);
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode Continuation::SetFromOptions()
 {
@@ -314,8 +340,14 @@ PetscErrorCode Continuation::CorrectorIterations(const State &last, const State 
       why = "the corrector left the physical domain (T = " + std::to_string(y.T) + " s, " + param + " = " + std::to_string(y.lambda) + ")";
       PetscFunctionReturn(0);
     }
-    PetscCall(SetParam(*model_, y.lambda));
+    // dH/dlambda's flow first: the exact products' tangents follow the flow stored last, which
+    // must be the residual's at lambda.
+    const PetscReal el = shoot_->fd_step * std::max(std::abs(y.lambda), sl_);
     PetscCall(shoot_->Pack(y.U, y.dU, y.T, x_));
+    PetscCall(SetParam(*model_, y.lambda + el));
+    PetscCall(shoot_->Residual(x_, fl_));
+    ++flows_;
+    PetscCall(SetParam(*model_, y.lambda));
     PetscCall(shoot_->Residual(x_, f_));
     ++flows_;
     PetscCall(VecNorm(f_, NORM_2, &nf));
@@ -333,13 +365,16 @@ PetscErrorCode Continuation::CorrectorIterations(const State &last, const State 
       PetscFunctionReturn(0);
     }
     // dH/dlambda at fixed (Z0, T); the phase row does not depend on lambda.
-    const PetscReal el = shoot_->fd_step * std::max(std::abs(y.lambda), sl_);
-    PetscCall(SetParam(*model_, y.lambda + el));
-    PetscCall(shoot_->Residual(x_, fl_));
-    PetscCall(SetParam(*model_, y.lambda));
-    ++flows_;
     PetscCall(VecAXPY(fl_, -1.0, f_));
     PetscCall(VecScale(fl_, 1.0 / el));
+    row_l_ = t.lambda / (sl_ * sl_);
+    if (precond_) {
+      bool have;
+      PetscCall(shoot_->PreparePreconditioner(x_, &have));
+      PetscCheck(have, comm_, PETSC_ERR_PLIB, "continuation: shooting has no preconditioner for this model");
+      PetscCall(shoot_->ApplyPreconditioner(fl_, pz_));
+      PetscCall(RowDot(pz_, &cz_));
+    }
     PetscCall(VecWAXPY(d.U, -1.0, pred.U, y.U));
     PetscCall(VecWAXPY(d.dU, -1.0, pred.dU, y.dU));
     d.T = y.T - pred.T, d.lambda = y.lambda - pred.lambda;
@@ -680,12 +715,24 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   // The arclength corrector's GMRES has no preconditioner: on the half brake (N = 782, multipliers
   // 0.9993-0.9998) it broke down at every step from ds = 0.02 down to 1.6e-4. Shooting's own Newton
   // converges there (exact tangents, the linear-monodromy preconditioner).
-  by_parameter_ = corrector == "parameter" || (corrector == "auto" && 2 * model.Size() + 1 > shoot.jacobian_dense_max);
+  // So above the size where shooting's Jacobian is dense, the corrector takes shooting's exact
+  // tangents and preconditioner, or (auto, where shooting has none) shooting at the predicted
+  // parameter. Small models keep the difference products that their branches were measured with.
+  by_parameter_ = corrector == "parameter";
+  precond_      = false;
+  if (!by_parameter_ && 2 * model.Size() + 1 > shoot.jacobian_dense_max) {
+    if (shoot.HasPreconditioner()) precond_ = true;
+    else if (corrector == "auto") by_parameter_ = true;
+  }
   if (by_parameter_)
     PetscCall(PetscPrintf(comm_,
-                          "cont: corrector: shooting at the predicted %s (-cont_corrector %s%s); folds in %s are not passed, -cont_corrector "
-                          "arclength passes them\n",
-                          param.c_str(), corrector.c_str(), corrector == "auto" ? ": N > -shoot_jacobian_dense_max / 2" : "", param.c_str()));
+                          "cont: corrector: shooting at the predicted %s (-cont_corrector %s%s); folds in %s are not passed\n", param.c_str(),
+                          corrector.c_str(), corrector == "auto" ? ": shooting has no preconditioner for this model" : "", param.c_str()));
+  else if (precond_)
+    PetscCall(PetscPrintf(comm_,
+                          "cont: corrector: arclength, GMRES on exact tangents preconditioned by shooting's preconditioner bordered by d/d%s "
+                          "(-cont_corrector %s)\n",
+                          param.c_str(), corrector.c_str()));
   // Work space of the corrector: the shooting state (U, dU, T) and the bordered one (+ lambda).
   PetscMPIInt rank, size;
   PetscInt    nx, Nx;
@@ -702,6 +749,18 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
   PetscCall(MatCreateShell(comm_, ne, ne, Nx + 1, Nx + 1, this, J_.out()));
   PetscCall(MatShellSetOperation(J_, MATOP_MULT, (void (*)(void))ContinuationCallbacks::Mult));
   PetscCall(KSPSetOperators(ksp_, J_, J_));
+  if (precond_) {
+    PC pc;
+    PetscCall(shoot.CreateState(pz_.out()));
+    PetscCall(shoot.CreateState(wx_.out()));
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PCSetType(pc, PCSHELL));
+    PetscCall(PCShellSetContext(pc, this));
+    PetscCall(PCShellSetApply(pc, ContinuationCallbacks::Precondition));
+    PetscCall(PCShellSetName(pc, "shooting's preconditioner bordered by dH/dlambda and the arclength row"));
+    // Right: GMRES's residual is then the true one, which the tolerance is about.
+    PetscCall(KSPSetPCSide(ksp_, PC_RIGHT));
+  }
 
   if (monitor)
     PetscCall(PetscPrintf(comm_, "cont start: %s = %.6f  T = %.7f s  amplitude %.4e m  separated %5.1f %%  stuck %5.1f %%  %s\n",

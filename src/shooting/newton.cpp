@@ -553,13 +553,44 @@ PetscErrorCode Shooting::JacobianProduct(Vec x, Vec v, Vec y)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Shooting::SetUpNewton()
+void Shooting::DecideJacobianForm()
 {
-  PetscFunctionBeginUser;
   jdense_  = ExactJacobian() && 2 * N_ + 1 <= jacobian_dense_max;
   // Difference products (-shoot_exact_jacobian 0) take the linear preconditioner where exact ones
   // would; below -shoot_jacobian_dense_max they keep plain GMRES on the small bordered system.
   jlinear_ = ti_ && ti_->Dense() && 2 * N_ + 1 > jacobian_dense_max && linear_pc && 2 * N_ <= linear_pc_max;
+}
+
+PetscErrorCode Shooting::PreparePreconditioner(Vec x, bool *have)
+{
+  PetscFunctionBeginUser;
+  *have = false;
+  if (!ExactJacobian() || deflate_power > 0) PetscFunctionReturn(0);
+  DecideJacobianForm();
+  if (!jdense_ && !jlinear_) PetscFunctionReturn(0);
+  PetscCall(EnsureTrajectory(x));
+  if (jdense_) PetscCall(BuildDenseJacobian(x));
+  else PetscCall(BuildLinearPreconditioner(x));
+  defl_m_ = 0;
+  *have   = true;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::ApplyPreconditioner(Vec v, Vec y)
+{
+  Eigen::VectorXd z;
+  Eigen::MatrixXd out;
+  PetscFunctionBeginUser;
+  PetscCall(ToNatural(v, z));
+  BasePreconditioner(z, out);
+  PetscCall(FromNatural(out.col(0), y));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Shooting::SetUpNewton()
+{
+  PetscFunctionBeginUser;
+  DecideJacobianForm();
   {
     // GMRES on tangent products (one period integration each): far from the cycle Newton's step
     // needs no 1e-6 linear solve, so the Krylov tolerance follows the residual's decrease

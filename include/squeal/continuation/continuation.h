@@ -9,11 +9,13 @@
 // a MatShell: one finite-difference flow per product for (Z0, T), one extra flow per iteration for
 // d/dlambda; GMRES without preconditioner (-cont_ksp_*). Folds are passed because lambda is an
 // unknown. That GMRES converges only on small models: on FE models (the half brake, N = 782) it
-// broke down at every step size, since the cycle's multipliers crowd 1. There (-cont_corrector
-// parameter, the default where shooting's Jacobian is not dense) a point is shooting's own Newton
-// at the predicted lambda from the predicted (Z0, T): its exact tangents and linear-monodromy
-// preconditioner, so a step costs what a shooting solve from a close start costs, but folds in
-// lambda are not passed (the leg stops there with the reason). A converged corrector is polished by Shooting::Solve at its lambda (one correction),
+// broke down at every step size, since the cycle's multipliers crowd 1. There (2N + 1 >
+// -shoot_jacobian_dense_max) the products are exact tangents and GMRES is preconditioned by
+// shooting's own preconditioner (Shooting::PreparePreconditioner) bordered by dH/dlambda and the
+// arclength row (its Schur complement, a scalar). -cont_corrector parameter instead takes
+// shooting's Newton at the predicted lambda from the predicted (Z0, T): no fold is passed (the leg
+// stops there with the reason); auto takes it where shooting has no preconditioner (the sparse
+// back end). A converged corrector is polished by Shooting::Solve at its lambda (one correction),
 // which also gives the Floquet multipliers (phase-averaged route) and the orbit summary, so every
 // point IS a stand-alone shooting solution. A failed step halves ds (and says so); below
 // -cont_ds_min the leg stops and what was computed is kept.
@@ -143,6 +145,11 @@ private:
   PetscErrorCode RunSlices(ContinuationResult &res);
   bool           down_only_ = false; // a slice: from its upper end towards -cont_min only
   bool           by_parameter_ = false; // the corrector is shooting at the predicted parameter (Run decides)
+  // The arclength corrector on exact tangent products with shooting's preconditioner (FE models),
+  // else on difference products without one (small models). Run decides.
+  bool           precond_ = false;
+  PetscReal      cz_ = 0, row_l_ = 0; // t-row applied to P^-1 dH/dlambda, and the row's lambda entry
+  PetscErrorCode RowDot(Vec vx, PetscReal *a) const; // the arclength row on a shooting-layout vector
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
   PetscErrorCode CorrectorIterations(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its,
                                      std::string &why);
@@ -177,7 +184,7 @@ private:
   VecH     x_, f_, fl_, xp_, fp_, vx_, rhs_, dy_;
   MatH     J_;
   KSPH     ksp_;
-  VecH     wU_, wdU_;
+  VecH     wU_, wdU_, pz_, wx_; // pz_ = P^-1 dH/dlambda of this corrector iteration (precond_)
   const State *tan_ = nullptr;
 };
 

@@ -137,6 +137,18 @@ public:
   PetscErrorCode TangentColumns(MPI_Comm poll, Eigen::Index c0, Eigen::Index kc, const Eigen::MatrixXd &dZ0, const Eigen::RowVectorXd &dT,
                                 bool modal, Eigen::MatrixXd &dZ1);
   bool           ExactJacobian() const { return exact_jacobian && ti_ && ti_->Dense(); }
+  // Newton's preconditioner for a caller's own Krylov solve on the bordered Jacobian at x
+  // (continuation's arclength corrector): the LU of the dense Jacobian (2N + 1 <=
+  // -shoot_jacobian_dense_max) or of the sliding linearisation's (-shoot_linear_pc), built as Newton
+  // builds them, on the flow at x (integrated if it is not the one stored: the caller's last
+  // Residual at x must be at the model's present parameters). After a Solve on this model.
+  // *have = false where Newton has none: difference products, the sparse back end, deflation on.
+  PetscErrorCode PreparePreconditioner(Vec x, bool *have);
+  bool           HasPreconditioner() const // whether PreparePreconditioner will have one (after a Solve)
+  {
+    return ExactJacobian() && !(deflate_power > 0) && (2 * N_ + 1 <= jacobian_dense_max || (linear_pc && 2 * N_ <= linear_pc_max));
+  }
+  PetscErrorCode ApplyPreconditioner(Vec v, Vec y); // y = P^-1 v, P PreparePreconditioner's
   PetscErrorCode CreateState(Vec *x) const;
   PetscErrorCode Pack(Vec U, Vec dU, PetscReal T, Vec x) const;
   PetscErrorCode Unpack(Vec x, Vec U, Vec dU, PetscReal *T) const;
@@ -292,6 +304,7 @@ private:
   PetscErrorCode  BuildDenseJacobian(Vec x);
   Eigen::MatrixXd Jd_;
   Eigen::PartialPivLU<Eigen::MatrixXd> jlu_;
+  void            DecideJacobianForm(); // jdense_ and jlinear_ from the model's size and the options
   bool            jdense_ = false; // this solve uses the dense bordered Jacobian
   bool            jlinear_ = false; // ... or the linearised-monodromy preconditioner (-shoot_linear_pc)
   Eigen::MatrixXd Mlin_;            // its monodromy, built at the first Jacobian of a solve
