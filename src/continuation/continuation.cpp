@@ -521,10 +521,11 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
     PetscCall(PetscTime(&t0));
     const int before = flows_;
     // Past an end of the range: a last point exactly on it, by a shooting solve at fixed parameter
-    // from the secant interpolated there.
-    const PetscReal bound = pred.lambda > lmax ? lmax : (pred.lambda < lmin ? lmin : pred.lambda);
-    if (bound != pred.lambda) {
-      const PetscReal s = (bound - last.lambda) / (pred.lambda - last.lambda);
+    // from the secant interpolated there (pred: the predictor, or a corrected point that the
+    // arclength carried past the end, as at size 1 of the brake: mu = 0.160025 for 0.16).
+    auto end_of_range = [&]() -> PetscErrorCode {
+      const PetscReal bound = pred.lambda > lmax ? lmax : lmin;
+      const PetscReal s     = (bound - last.lambda) / (pred.lambda - last.lambda);
       PetscCall(Axpby(pred, 1.0 - s, last, s)); // last + s (pred - last)
       pred.lambda = bound;
       bool        ok;
@@ -542,6 +543,10 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
                                 100 * (double)pt.frac_separated, 100 * (double)pt.frac_stuck, Multipliers(pt).c_str()));
         end = "reached the end of the range";
       } else end = interrupted_ ? why : "the shooting solve on the end of the range failed: " + why;
+      return 0;
+    };
+    if (pred.lambda > lmax || pred.lambda < lmin) {
+      PetscCall(end_of_range());
       break;
     }
     PetscInt    its = 0;
@@ -599,6 +604,11 @@ PetscErrorCode Continuation::Leg(int dir, const State &start, std::vector<Contin
       PetscCall(PetscPrintf(comm_, "cont: step from %s = %.6f failed (%s); halving ds to %.3e\n", param.c_str(), (double)last.lambda,
                             why.c_str(), (double)h));
       continue;
+    }
+    if (y.lambda > lmax || y.lambda < lmin) {
+      PetscCall(Copy(y, pred));
+      PetscCall(end_of_range());
+      break;
     }
     PetscCall(PetscTime(&t1));
     pt.ds = h, pt.leg = dir, pt.seconds = t1 - t0, pt.flow_evaluations = flows_ - before, pt.newton_iterations = its;
