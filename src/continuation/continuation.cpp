@@ -722,12 +722,12 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     // range (with -cont_max 1e6 the first step of ds = 0.05 jumped 5e4 m/s, to the range's end).
     sT_ = s0.T, sl_ = std::min(lmax - lmin, param == "mu" ? (PetscReal)0.6 : (PetscReal)10.0);
   }
-  // The arclength corrector's GMRES has no preconditioner: on the half brake (N = 782, multipliers
-  // 0.9993-0.9998) it broke down at every step from ds = 0.02 down to 1.6e-4. Shooting's own Newton
-  // converges there (exact tangents, the linear-monodromy preconditioner).
+  // On difference products without preconditioner, the arclength corrector's GMRES broke down on
+  // the half brake (N = 782, multipliers 0.9993-0.9998) at every step from ds = 0.02 down to 1.6e-4.
   // So above the size where shooting's Jacobian is dense, the corrector takes shooting's exact
-  // tangents and preconditioner, or (auto, where shooting has none) shooting at the predicted
-  // parameter. Small models keep the difference products that their branches were measured with.
+  // tangents and preconditioner; where shooting has none (the sparse back end), auto takes shooting
+  // at the predicted parameter. Small models keep the difference products that their branches
+  // were measured with.
   by_parameter_ = corrector == "parameter";
   precond_      = false;
   if (!by_parameter_ && 2 * model.Size() + 1 > shoot.jacobian_dense_max) {
@@ -770,6 +770,12 @@ PetscErrorCode Continuation::Run(Model &model, EquilibriumSolver &eqs, Stability
     PetscCall(PCShellSetName(pc, "shooting's preconditioner bordered by dH/dlambda and the arclength row"));
     // Right: GMRES's residual is then the true one, which the tolerance is about.
     PetscCall(KSPSetPCSide(ksp_, PC_RIGHT));
+  } else {
+    PC        pc;
+    PetscBool shell;
+    PetscCall(KSPGetPC(ksp_, &pc));
+    PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
+    if (shell) PetscCall(PCSetType(pc, PCNONE)); // a Run before on a larger model
   }
 
   if (monitor)

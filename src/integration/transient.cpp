@@ -340,8 +340,7 @@ PetscErrorCode TransientAnalysis::StartMode(const StabilityResult &stab, const M
   PetscFunctionReturn(0);
 }
 
-// Size of the records (all on rank 0, then in the file): refuse or thin before the run.
-PetscErrorCode TransientAnalysis::RecordCount(PetscInt N, PetscInt nc, PetscInt nsteps, TransientResult &res, PetscInt *records) const
+PetscErrorCode TransientAnalysis::RecordBudget(PetscReal *bytes) const
 {
   PetscFunctionBeginUser;
   PetscReal budget = max_memory * 1048576.0;
@@ -350,8 +349,29 @@ PetscErrorCode TransientAnalysis::RecordCount(PetscInt N, PetscInt nc, PetscInt 
     budget           = pages > 0 && page > 0 ? 0.25 * (PetscReal)pages * (PetscReal)page : 4.0 * 1073741824.0;
   }
   PetscCallMPI(MPI_Bcast(&budget, 1, MPIU_REAL, 0, comm_)); // rank 0 holds the records: its memory counts
-  // Streamed: t and the energies here, and what the consumer keeps.
-  const PetscReal per   = res.streamed ? 5 * sizeof(PetscReal) + on_record_bytes : RecordBytes(N, nc);
+  *bytes = budget;
+  PetscFunctionReturn(0);
+}
+
+// Streamed: t and the energies here, and what the consumer keeps (on_record_bytes).
+static PetscReal StreamedRecordBytes(PetscReal on_record_bytes) { return 5 * sizeof(PetscReal) + on_record_bytes; }
+
+PetscErrorCode TransientAnalysis::StreamedRecordsFit(PetscInt64 *records) const
+{
+  PetscReal budget;
+  PetscFunctionBeginUser;
+  PetscCall(RecordBudget(&budget));
+  *records = (PetscInt64)(budget / StreamedRecordBytes(on_record_bytes));
+  PetscFunctionReturn(0);
+}
+
+// Size of the records (all on rank 0, then in the file): refuse or thin before the run.
+PetscErrorCode TransientAnalysis::RecordCount(PetscInt N, PetscInt nc, PetscInt nsteps, TransientResult &res, PetscInt *records) const
+{
+  PetscReal budget;
+  PetscFunctionBeginUser;
+  PetscCall(RecordBudget(&budget));
+  const PetscReal per   = res.streamed ? StreamedRecordBytes(on_record_bytes) : RecordBytes(N, nc);
   const PetscReal need  = per * (PetscReal)(nsteps / keep_every + 2);
   if (need > budget) {
     PetscCheck(!keep_every_set, comm_, kErrInput,

@@ -148,7 +148,15 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
   if (stab.unstable.empty()) res.modal_note = "no unstable mode in the band";
   if (rank != 0) modes_re.clear(), modes_im.clear();
   // Chunks of a whole number of records: the records of successive chunks lie on one grid.
-  const PetscInt keep = transient.keep_every;
+  // The first chunk's transient may thin its records for its memory budget (-transient_max_memory:
+  // the size-2 brake's first chunk keeps 1.25 N doubles a record for the signal DOF's choice, 12 GB
+  // at every step): the grid is then its, and the later chunks are run on it.
+  PetscInt       keep = transient.keep_every;
+  struct RestoreKeep {
+    TransientAnalysis &t;
+    const PetscInt     kept;
+    ~RestoreKeep() { t.keep_every = kept; }
+  } restore_keep{transient, transient.keep_every};
   PetscInt       chunk_steps = 0, max_chunks = 0;
   PetscInt64     rest = 0, rest_done = 0; // steps after the first chunk: the budget's, those run
   PetscReal      h = 0, elapsed = 0;
@@ -168,6 +176,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
   transient.on_record = [&](const TransientResult &tr, const TransientRecord &rec) -> PetscErrorCode {
     PetscFunctionBeginUser;
     if (chunk == 0 && rec.index == 0) {
+      keep = tr.keep_every;
       // The modal sums' checkpoints about once per period of the starting mode, at most ~512 in
       // the budget: the modal window starts within a period of the start-up cut.
       if (!modes_re.empty()) {
@@ -210,9 +219,14 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       // of the run (35 s of 108 s in 1000 periods of the 782-DOF brake, 20 chunks). Growing, the
       // statistics cost a bounded multiple of the last one; the first chunks keep their length.
       const PetscInt64 grow  = (PetscInt64)std::llround(kChunkGrowth * elapsed / h / keep) * keep;
-      const PetscInt64 steps = std::min<PetscInt64>(std::max<PetscInt64>(chunk_steps, grow), rest - rest_done);
-      transient.h = h, transient.t_final = (PetscReal)steps * h;
       transient.on_record_bytes = (PetscReal)(3 + 2 * modes_re.size() + 1) * sizeof(PetscReal);
+      // ... but no longer than the records' memory budget holds on the first chunk's grid (else the
+      // transient would thin this chunk's records onto another grid).
+      PetscInt64 fit;
+      PetscCall(transient.StreamedRecordsFit(&fit));
+      const PetscInt64 cap   = std::max<PetscInt64>(1, fit - 2) * keep;
+      const PetscInt64 steps = std::min<PetscInt64>({std::max<PetscInt64>(std::min<PetscInt64>(chunk_steps, cap), std::min(grow, cap)), rest - rest_done});
+      transient.h = h, transient.t_final = (PetscReal)steps * h;
     }
     const double chunk_start = MPI_Wtime();
     PetscCall(transient.Run(model, eq, stab, ti, tr));
@@ -233,13 +247,17 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
         break;
       }
     }
+    PetscCheck(k == 0 || stopped || tr.keep_every == keep, comm_, kErrInput,
+               "steady state: chunk %" PetscInt_FMT " recorded every %" PetscInt_FMT "-th step for its memory budget, not every %" PetscInt_FMT
+               "-th as the first: raise -transient_max_memory or lower -steady_chunk_periods",
+               k + 1, tr.keep_every, keep);
     if (k == 0) {
       res.T_ref = tr.T_ref;
       h         = tr.h;
-      PetscCheck(stopped || tr.keep_every == keep, comm_, kErrInput,
-                 "steady state: the transient raised -transient_keep_every from %" PetscInt_FMT " to %" PetscInt_FMT
-                 " for its memory budget; the chunks need one record grid: lower -steady_chunk_periods or set -transient_keep_every %" PetscInt_FMT,
-                 keep, tr.keep_every, tr.keep_every);
+      if (keep != transient.keep_every) {
+        PetscCall(PetscPrintf(comm_, "steady state: every chunk records every %" PetscInt_FMT "-th step, as the first (thinned for its memory budget)\n", keep));
+        transient.keep_every = keep;
+      }
       // Later chunks: a whole number of records, about chunk_periods each.
       chunk_steps = std::max<PetscInt>(keep, (PetscInt)std::llround(chunk_periods * tr.T_ref / h / keep) * keep);
       max_chunks  = 1 + (PetscInt)std::ceil((max_periods - chunk_periods) * tr.T_ref / (chunk_steps * h) - 1e-9);

@@ -157,6 +157,10 @@ public:
   // Not an option: a caller that reads no energy (the statistical steady state) sets it false, and
   // the run computes no works and energies (three products with M, C, K per step), only the NaN test.
   bool energy = true;
+  // The records' memory budget in bytes (-transient_max_memory, or a quarter of rank 0's physical
+  // memory), the same on every rank; and how many streamed records fit in it. Collective.
+  PetscErrorCode RecordBudget(PetscReal *bytes) const;
+  PetscErrorCode StreamedRecordsFit(PetscInt64 *records) const;
 
 private:
   // Run's steps: the mode to start from, the records' number (keep_every raised, or the run refused,
