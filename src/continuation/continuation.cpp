@@ -151,6 +151,7 @@ PetscErrorCode Continuation::SetFromOptions()
   // Finite-difference products carry ~1e-7 relative noise (as in shooting): no tighter than 1e-6.
   PetscCall(KSPSetTolerances(ksp_, 1e-6, PETSC_DEFAULT, PETSC_DEFAULT, 200));
   PetscCall(KSPSetFromOptions(ksp_));
+  PetscCall(KSPGetTolerances(ksp_, &ksp_rtol_, &ksp_atol_, nullptr, nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -381,6 +382,11 @@ PetscErrorCode Continuation::CorrectorIterations(const State &last, const State 
     PetscCall(Dot(t, d, &a));
     PetscCall(ToExt(f_, a, rhs_));
     PetscCall(VecScale(rhs_, -1.0));
+    if (precond_) {
+      // No linear residual below a thousandth of the corrector's own tolerance on ||H|| / ||Z0||:
+      // the half brake's second iteration started at 3e-6 and took 10 tangent products to 1e-12.
+      PetscCall(KSPSetTolerances(ksp_, ksp_rtol_, std::max(ksp_atol_, 1e-3 * shoot_->eps1 * std::hypot(nU, ndU)), PETSC_DEFAULT, PETSC_DEFAULT));
+    }
     KSPConvergedReason kr;
     PetscCall(KSPSolve(ksp_, rhs_, dy_));
     PetscCall(KSPGetConvergedReason(ksp_, &kr));

@@ -149,6 +149,7 @@ private:
   // else on difference products without one (small models). Run decides.
   bool           precond_ = false;
   PetscReal      cz_ = 0, row_l_ = 0; // t-row applied to P^-1 dH/dlambda, and the row's lambda entry
+  PetscReal      ksp_rtol_ = 1e-6, ksp_atol_ = 0; // -cont_ksp_rtol, -cont_ksp_atol as set
   PetscErrorCode RowDot(Vec vx, PetscReal *a) const; // the arclength row on a shooting-layout vector
   PetscErrorCode Corrector(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its, std::string &why);
   PetscErrorCode CorrectorIterations(const State &last, const State &pred, const State &tangent, State &y, PetscInt *its,
