@@ -119,8 +119,9 @@ PetscErrorCode Continuation::SetFromOptions()
                              &both, nullptr));
   PetscCall(PetscOptionsBool("-monitor", "One progress line per point", "Continuation", monitor, &monitor, nullptr));
   PetscCall(PetscOptionsString("-corrector",
-                               "arclength (Newton in (Z0, T, lambda), GMRES without preconditioner: passes folds), parameter (shooting's own Newton "
-                               "at the predicted lambda, its tangents and preconditioner), or auto (arclength where shooting's Jacobian is dense)",
+                               "arclength (Newton in (Z0, T, lambda), passes folds; above -shoot_jacobian_dense_max GMRES on exact tangents with "
+                               "shooting's preconditioner), parameter (shooting's Newton at the predicted lambda; no folds), or auto (arclength, "
+                               "parameter where shooting has no preconditioner)",
                                "Continuation", corr, corr, sizeof(corr), nullptr));
   PetscCall(PetscOptionsInt("-slices", "Parameter slices computed by groups of ranks, each from its own shooting solution at its upper end",
                             "Continuation", slices, &slices, nullptr));
