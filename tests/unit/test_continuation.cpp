@@ -76,6 +76,18 @@ PetscErrorCode RunBranch(Problem &pr, Continuation &c, ContinuationResult &res)
   PetscFunctionReturn(0);
 }
 
+// From the start's mu = 0.5 up to 0.56 in at most 6 points, without the equilibrium's stability nor
+// the bisection of regime changes: the branch whose points the tests compare with stand-alone runs.
+void BranchTo056(Problem &pr, ContinuationResult &res)
+{
+  Continuation c(PETSC_COMM_WORLD);
+  ASSERT_EQ(c.SetFromOptions(), 0);
+  c.both = PETSC_FALSE, c.lmax = 0.56, c.max_steps = 6, c.equilibrium = PETSC_FALSE, c.locate_tol = 0;
+  ASSERT_EQ(RunBranch(pr, c, res), 0);
+  ASSERT_GE(res.points.size(), 3u);
+  EXPECT_EQ(res.points.back().param, 0.56);
+}
+
 const ContinuationEvent *Find(const ContinuationResult &r, const char *type)
 {
   for (auto &e : r.events)
@@ -105,13 +117,9 @@ TEST(Continuation, PointsAgreeWithStandAloneShootingTo1e8)
   for (PetscReal V : {3.0, 0.75}) {
     Problem pr(V, 0.5, 1e-10, steps);
     ASSERT_EQ(pr.err, 0) << "V = " << V;
-    Continuation c(PETSC_COMM_WORLD);
-    ASSERT_EQ(c.SetFromOptions(), 0);
-    c.both = PETSC_FALSE, c.lmax = 0.56, c.max_steps = 6, c.equilibrium = PETSC_FALSE, c.locate_tol = 0;
     ContinuationResult res;
-    ASSERT_EQ(RunBranch(pr, c, res), 0);
-    ASSERT_GE(res.points.size(), 3u);
-    EXPECT_EQ(res.points.back().param, 0.56);
+    BranchTo056(pr, res);
+    if (HasFatalFailure()) return;
     for (size_t i : {(size_t)1, res.points.size() / 2 + 1, res.points.size() - 1}) {
       const ContinuationPoint &p = res.points[i];
       Problem                  alone(V, p.param, 1e-10, steps);
@@ -135,13 +143,9 @@ TEST(Continuation, PreconditionedCorrectorPointsAgreeWithStandAloneShooting)
   Problem        pr(3.0, 0.5, 1e-10, steps);
   ASSERT_EQ(pr.err, 0);
   pr.sh.jacobian_dense_max = 1; // 2N + 1 = 7 > 1: the preconditioned corrector, and shooting's linear preconditioner
-  Continuation c(PETSC_COMM_WORLD);
-  ASSERT_EQ(c.SetFromOptions(), 0);
-  c.both = PETSC_FALSE, c.lmax = 0.56, c.max_steps = 6, c.equilibrium = PETSC_FALSE, c.locate_tol = 0;
   ContinuationResult res;
-  ASSERT_EQ(RunBranch(pr, c, res), 0);
-  ASSERT_GE(res.points.size(), 3u);
-  EXPECT_EQ(res.points.back().param, 0.56);
+  BranchTo056(pr, res);
+  if (HasFatalFailure()) return;
   for (size_t i = 1; i < res.points.size(); ++i) {
     const ContinuationPoint &p = res.points[i];
     Problem                  alone(3.0, p.param, 1e-10, steps);
