@@ -225,7 +225,7 @@ PetscErrorCode SteadyState::Run(const Model &model, const SlidingEquilibrium &eq
       PetscInt64 fit;
       PetscCall(transient.StreamedRecordsFit(&fit));
       const PetscInt64 cap   = std::max<PetscInt64>(1, fit - 2) * keep;
-      const PetscInt64 steps = std::min<PetscInt64>({std::max<PetscInt64>(std::min<PetscInt64>(chunk_steps, cap), std::min(grow, cap)), rest - rest_done});
+      const PetscInt64 steps = std::min<PetscInt64>({std::max<PetscInt64>(chunk_steps, grow), cap, rest - rest_done});
       transient.h = h, transient.t_final = (PetscReal)steps * h;
     }
     const double chunk_start = MPI_Wtime();
