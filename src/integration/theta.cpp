@@ -261,8 +261,15 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "rounded to float, v kept in double and remade with the double h W often enough that the solve passes "
                             "the same stopping test (0: never)",
                             "LocalContactSolver::SetFixedPointSingle", fp_single_, &fp_single_, nullptr));
+  PetscCall(PetscOptionsInt("-tangent_single",
+                            "Dense back end, nodal step tangents (shooting's Jacobian products, Floquet's blocks): from this many DOFs "
+                            "their products with the step matrices P1, P2 and Y read them rounded to float, half the time; the flows "
+                            "stay in double (0: never)",
+                            "ThetaIntegrator::StepTangent", tangent_single_, &tangent_single_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  PetscCheck(tangent_single_ >= 0, comm_, kErrInput, "option -%stangent_single = %" PetscInt_FMT ": expected a number of DOFs >= 0 (0: never)",
+             prefix_.c_str(), tangent_single_);
   PetscCheck(fp_anderson_ >= 0 && fp_anderson_ <= 8, comm_, kErrInput, "option -%sfp_anderson = %" PetscInt_FMT ": expected 0 to 8",
              prefix_.c_str(), fp_anderson_);
   PetscCheck(fp_single_ >= 0, comm_, kErrInput, "option -%sfp_single = %" PetscInt_FMT ": expected a number of contact unknowns >= 0 (0: never)",
@@ -767,8 +774,9 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
                                      modal_step_ == 0 ? "auto" : modal_step_ == 1 ? "false" : "true", modal_step_why_.empty() ? "" : ": ",
                                      modal_step_why_.c_str()));
   if (dense_ && modal_state_ >= 0)
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  step tangents: %s (-%smodal_tangent%s%s)\n", modal_on_ ? "modal" : "nodal", prefix_.c_str(),
-                                     modal_why_.empty() ? "" : ": ", modal_why_.c_str()));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  step tangents: %s (-%smodal_tangent%s%s)%s\n", modal_on_ ? "modal" : "nodal", prefix_.c_str(),
+                                     modal_why_.empty() ? "" : ": ", modal_why_.c_str(),
+                                     !modal_on_ && TangentSingle() ? ", products with P1, P2, Y in float (-theta_tangent_single)" : ""));
   if (nc_ > 0 && local_.Solver() == ContactSolver::kNewton)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  contact solver: semi-smooth Newton (-%scontact_solver %s, at most %" PetscInt_FMT

@@ -173,6 +173,7 @@ PetscErrorCode ThetaIntegrator::ModalStepSetUp()
   } else W_.resize(0, 0);
   nodal_ready_ = false;
   P1_.resize(0, 0), P2_.resize(0, 0), Y_.resize(0, 0), p3_.resize(0);
+  P12f_.resize(0, 0), Yf_.resize(0, 0), nodal_f_ready_ = false;
   PetscFunctionReturn(0);
 }
 
@@ -191,6 +192,7 @@ PetscErrorCode ThetaIntegrator::EnsureNodal()
   p3_          = h * llt_.solve(Fd_);
   Y_           = llt_.solve(Ht_.transpose());
   nodal_ready_ = true;
+  nodal_f_ready_ = false;
   PetscFunctionReturn(0);
 }
 

@@ -186,6 +186,7 @@ private:
   PetscInt     fp_anderson_ = 5;                     // -theta_fp_anderson: depth of the mixing of the fixed point's passes
   PetscBool    fp_symmetric_ = PETSC_FALSE;          // -theta_fp_symmetric: symmetric Gauss-Seidel sweeps (dense W, run-time sizes)
   PetscInt     fp_single_ = 512;                     // -theta_fp_single: passes read h W in float from this many 3 n_c
+  PetscInt     tangent_single_ = 1024;               // -theta_tangent_single: nodal step tangents read P1, P2, Y in float from this many DOFs
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
@@ -232,6 +233,11 @@ private:
   const Model    *dense_for_ = nullptr;
   Eigen::VectorXd full_U_, full_dU_;
   Eigen::MatrixXd tvf_, tdr_; // StepTangent work arrays
+  // -theta_tangent_single: [P1 - I, P2] and Y rounded to float (formed at the first nodal tangent after a
+  // set-up), and the float work arrays of their products.
+  Eigen::MatrixXf P12f_, Yf_, tXf_, tvff_, tdrff_;
+  bool            nodal_f_ready_ = false;
+  bool            TangentSingle() const { return tangent_single_ > 0 && n_ >= tangent_single_; }
   std::vector<int> tstatus_;
   // An unknown of the closed-point tangent system (theta_tangent.cpp): delta r(o..o+2) += g x; its
   // row d x + h e^T (W delta r)(o..o+2) = -e^T delta w(o..o+2), minus delta g~_n / h if normal.
