@@ -117,6 +117,18 @@ TEST(BorderedLU, BorderUpdatesSolveAsTheWholeMatrixsLU)
     EXPECT_LT((y - ref).norm(), 1e-13 * ref.norm()) << "border " << k;
     EXPECT_LT((J * y - z).norm(), 1e-15 * (J.norm() * y.norm())) << "border " << k;
   }
+  // A column and a row in other units (the state's: 1e6 and 1e-4 here), as shooting's period
+  // column and phase row are: the same update, to the whole LU's accuracy.
+  for (int k = 0; k < 3; ++k) {
+    Eigen::VectorXd c2 = col, r2 = row;
+    c2.head(n) = 1e6 * (col.head(n) + 0.2 * Eigen::VectorXd::Random(n));
+    r2.head(n) = 1e-4 * (row.head(n) + 0.2 * Eigen::VectorXd::Random(n));
+    ASSERT_TRUE(lu.SetBorder(c2, r2)) << "scaled border " << k;
+    const Eigen::MatrixXd J   = bordered(c2, r2);
+    const Eigen::MatrixXd ref = J.partialPivLu().solve(z);
+    lu.Solve(z, y);
+    EXPECT_LT((y - ref).norm(), 1e-10 * ref.norm()) << "scaled border " << k;
+  }
   // The last row a combination of the rows above: J singular, the update refused.
   Eigen::VectorXd bad(n + 1);
   bad.head(n) = A.row(3).transpose() + A.row(5).transpose();
