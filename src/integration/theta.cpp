@@ -657,6 +657,7 @@ void ThetaIntegrator::SetUpKernel()
   if (modal_step_on_) {
     // Newton (-theta_contact_solver ssn) runs in Solve, which SolveSized<Dynamic> calls for it too.
     ModalStepData m{&Phi_, &PhiInv_, &Htm_, &p1m_, &p2m_, &p3m_, &ainvm_, &Ht_, ht_sparse_ ? &Hts_ : nullptr, &g0_, h_, theta_, &local_};
+    if (modal_dense_) m.G = &G_, m.Ym = &Ym_, m.mk = &mk_;
     kernel_ = MakeModalStepKernel(m);
     return;
   }

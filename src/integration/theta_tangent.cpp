@@ -43,8 +43,14 @@ PetscErrorCode ThetaIntegrator::StepTangentSource(const Eigen::VectorXd &Ui, con
   if (!nodal_ready_) {
     // The modal step's set-up: A^-1 = Phi diag(1/a) Phi^T and Y r = Phi diag(1/a) (H^T Phi)^T r.
     tYm_.noalias() = Phi_.transpose() * tq_;
-    if (nc_ > 0) tYm_.noalias() += Htm_.transpose() * r;
-    tYm_.array() *= ainvm_.array();
+    if (modal_dense_) {
+      // The dense G: A^-1 = Phi G Phi^T and Y r = Phi Ym r.
+      tYm_ = (G_.selfadjointView<Eigen::Lower>() * tYm_).eval();
+      if (nc_ > 0) tYm_.noalias() += Ym_ * r;
+    } else {
+      if (nc_ > 0) tYm_.noalias() += Htm_.transpose() * r;
+      tYm_.array() *= ainvm_.array();
+    }
     c.noalias() = Phi_ * tYm_;
     PetscFunctionReturn(0);
   }
@@ -115,7 +121,29 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
   const bool         modal = step && step->modal;
   PetscCheck(!modal || (modal_on_ && modal_h_ == h_), comm_, PETSC_ERR_ARG_WRONGSTATE,
              "modal step tangent without ModalTangent at this step size");
-  if (modal) tvf_ = (ddU.array().colwise() * p1m_.array() + dU.array().colwise() * p2m_.array()).matrix();
+  // The dense modal G in float: G - I, H^T Phi, its normal rows and Ym (the contact products).
+  const bool modal_f = modal && modal_dense_ && TangentSingle();
+  if (modal_f && !modal_f_ready_) {
+    Gf_ = G_.cast<float>();
+    Gf_.diagonal().array() -= 1.0f;
+    Htmf_ = Htm_.cast<float>(), Htmnf_ = Htmn_.cast<float>(), Ymf_ = Ym_.cast<float>();
+    modal_f_ready_ = true;
+  }
+  if (modal && modal_dense_) {
+    // P1 ddq + P2 dq = G x - (1 - theta) / theta ddq with x = ddq / theta - h k dq; in float as
+    // ddq - h k dq + (G - I) x (the identity kept exact, as P1's in the nodal tangent below).
+    tX_ = ddU / t - h * (dU.array().colwise() * mk_.array()).matrix();
+    if (modal_f) {
+      tXf_ = tX_.cast<float>(), tvff_.resize(n_, k);
+      if (k == 1) tvff_.col(0).noalias() = Gf_ * tXf_.col(0);
+      else GemmFloat(Gf_, tXf_, tvff_);
+      tvf_ = ddU - h * (dU.array().colwise() * mk_.array()).matrix() + tvff_.cast<double>();
+    } else {
+      tvf_.resize(n_, k);
+      Gemm(G_, false, tX_, tvf_);
+      tvf_ -= ((1 - t) / t) * ddU;
+    }
+  } else if (modal) tvf_ = (ddU.array().colwise() * p1m_.array() + dU.array().colwise() * p2m_.array()).matrix();
   else {
     PetscCall(EnsureNodal());
     tvf_.resize(n_, k);
@@ -163,7 +191,13 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       tX_ = dU + (h * (1 - t)) * ddU;
       tHv_.resize(3 * nc_, k), tGn_.resize(nc_, k);
       if (ht_sparse_ && !modal) tHv_.noalias() = Hts_ * tvf_, tGn_.noalias() = Htns_ * tX_;
-      else if (modal && k == 1) {
+      else if (modal_f) {
+        tvff_ = tvf_.cast<float>(), tXf_ = tX_.cast<float>();
+        tHvf_.resize(3 * nc_, k), tGnf_.resize(nc_, k);
+        if (k == 1) tHvf_.col(0).noalias() = Htmf_ * tvff_.col(0), tGnf_.col(0).noalias() = Htmnf_ * tXf_.col(0);
+        else GemmFloat(Htmf_, tvff_, tHvf_), GemmFloat(Htmnf_, tXf_, tGnf_);
+        tHv_ = tHvf_.cast<double>(), tGn_ = tGnf_.cast<double>();
+      } else if (modal && k == 1) {
         // One column (GMRES) in modal coordinates: H^T Phi (dense, 15 MB on the 1420-DOF pad) read
         // once for both products, kBlock columns at a time (the second product reads them from
         // L2), instead of H^T Phi and then its normal rows; the gap change takes the normal rows
@@ -244,6 +278,12 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         else GemmFloat(Yf_, tdrff_, tvff_);
         tvf_ += h * tvff_.cast<double>();
       } else if (!modal) Gemm(Y_, false, tdrf_, tvf_, h, 1.0);
+      else if (modal_f) {
+        tdrff_ = tdrf_.cast<float>(), tvff_.resize(n_, k);
+        if (k == 1) tvff_.col(0).noalias() = Ymf_ * tdrff_.col(0);
+        else GemmFloat(Ymf_, tdrff_, tvff_);
+        tvf_ += h * tvff_.cast<double>();
+      } else if (modal && modal_dense_) Gemm(Ym_, false, tdrf_, tvf_, h, 1.0);
       else {
         // Phi^-1 Y = diag(1/a) (H^T Phi)^T, read from H^T Phi in place (one copy of it, not two).
         tYr_.resize(n_, k);

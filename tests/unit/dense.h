@@ -27,6 +27,23 @@ struct Integration {
   }
 };
 
+// C = diag(c_i), c_i varying: a damping that (K, M)'s modes do not diagonalise where K couples the
+// cells (a chain's), so modal steps and tangents need the dense G = A_m^-1.
+inline PetscErrorCode NonProportionalDamping(Model &model)
+{
+  Vec      d;
+  PetscInt lo, hi;
+  PetscFunctionBeginUser;
+  PetscCall(MatCreateVecs(model.C, &d, nullptr));
+  PetscCall(VecGetOwnershipRange(d, &lo, &hi));
+  for (PetscInt i = lo; i < hi; ++i) PetscCall(VecSetValue(d, i, 20.0 * (1.0 + 0.05 * (double)i), INSERT_VALUES));
+  PetscCall(VecAssemblyBegin(d));
+  PetscCall(VecAssemblyEnd(d));
+  PetscCall(MatDiagonalSet(model.C, d, INSERT_VALUES));
+  PetscCall(VecDestroy(&d));
+  PetscFunctionReturn(0);
+}
+
 // Full copy of A on every rank.
 inline Eigen::MatrixXd ToDense(Mat A)
 {

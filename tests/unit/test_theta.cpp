@@ -83,12 +83,16 @@ double LinearError(double theta, PetscInt steps, bool dense)
 // frames, so 1 to 2 non-zeros in a row of H^T), from its sliding equilibrium with a velocity
 // pattern that opens and slides points, set up in two integrators (prefix null: the default
 // "theta_") at h = 2e-6 on the dense back end.
-void ChainRuns(Model &model, SlidingEquilibrium &eq, Eigen::VectorXd &v0, test::Integration (&run)[2], const char *const (&prefix)[2])
+void ChainRuns(Model &model, SlidingEquilibrium &eq, Eigen::VectorXd &v0, test::Integration (&run)[2], const char *const (&prefix)[2],
+               bool nonproportional = false)
 {
   ChainParams cp;
   cp.cells  = 24;
   cp.cell.V = 0.75;
   ASSERT_EQ(BuildChain(PETSC_COMM_WORLD, cp, model), 0);
+  if (nonproportional) {
+    ASSERT_EQ(test::NonProportionalDamping(model), 0);
+  }
   EquilibriumSolver eqs(PETSC_COMM_WORLD);
   ASSERT_EQ(eqs.Solve(model, eq), 0);
   const PetscInt N = model.Size(), nc = model.contacts.Size();
@@ -512,8 +516,13 @@ TEST(Theta, SparseHTransposeGivesTheDenseStepsAndTangents)
   EXPECT_LT(worst_tangent, 1e-12);
 }
 
-TEST(Theta, ModalStepGivesTheNodalStepsTangentsAndSources)
+class ModalStep : public ::testing::TestWithParam<bool> {};
+
+TEST_P(ModalStep, GivesTheNodalStepsTangentsAndSources)
 {
+  // With GetParam(): a damping the modes do not diagonalise (C = diag(c_i), c_i varying), where the
+  // modal step takes the dense G = A_m^-1 (theta_modal.cpp) instead of the diagonal P1, P2.
+  const bool dense = GetParam();
   // The step in the modal coordinates of (K, M) (-theta_modal_step; the chain's C = c I is diagonal
   // there) against the nodal one: a 24-cell chain (N = 72, rotated frames), 3000 steps from its
   // equilibrium with a velocity pattern that opens and slides points, a jump of the state half-way
@@ -526,12 +535,13 @@ TEST(Theta, ModalStepGivesTheNodalStepsTangentsAndSources)
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ms_modal_step", "true"), 0);
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-ns_modal_step", "false"), 0);
   test::Integration run[2]; // modal, nodal
-  ASSERT_NO_FATAL_FAILURE(ChainRuns(model, eq, v0, run, {"ms_", "ns_"}));
+  ASSERT_NO_FATAL_FAILURE(ChainRuns(model, eq, v0, run, {"ms_", "ns_"}, dense));
   const PetscInt N = model.Size();
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ms_modal_step"), 0);
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-ns_modal_step"), 0);
   ASSERT_TRUE(run[0].ti.ModalStep());
   ASSERT_FALSE(run[1].ti.ModalStep());
+  ASSERT_EQ(run[0].ti.ModalDense(), dense);
   // The same Delassus matrix from (H^T Phi) diag(1/a) (H^T Phi)^T as from H^T A^-1 H.
   EXPECT_LT((run[0].ti.Delassus() - run[1].ti.Delassus()).norm(), 1e-13 * run[1].ti.Delassus().norm());
   std::vector<int> status;
@@ -575,6 +585,8 @@ TEST(Theta, ModalStepGivesTheNodalStepsTangentsAndSources)
   EXPECT_LT(worst_tangent, 1e-12);
   EXPECT_TRUE(run[0].ti.ModalStep()); // the nodal tangents did not switch the step
 }
+
+INSTANTIATE_TEST_SUITE_P(Theta, ModalStep, ::testing::Values(false, true), [](const auto &info) { return info.param ? "DenseG" : "DiagonalC"; });
 
 TEST(Theta, StepTangentMatchesCentralDifferencesOfTheStepOnEveryStatus)
 {

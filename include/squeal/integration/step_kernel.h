@@ -149,6 +149,10 @@ struct ModalStepData {
   const Eigen::VectorXd *g0;
   PetscReal              h, theta;
   LocalContactSolver    *local;
+  // C not diagonal in the basis: G = A_m^-1 (dense), Phi^-1 Y = G (H^T Phi)^T and diag(k); else null
+  // (p1m, p2m and ainv then hold the diagonal step).
+  const Eigen::MatrixXd *G = nullptr, *Ym = nullptr;
+  const Eigen::VectorXd *mk = nullptr;
 };
 std::unique_ptr<DenseStepKernel> MakeModalStepKernel(const ModalStepData &d);
 

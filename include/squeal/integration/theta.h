@@ -134,6 +134,8 @@ public:
   // and A^-1 H, which are then formed only if a nodal tangent asks for them. Shooting sets up at
   // every new period: it says so (SetManySetUps), and the auto choice then takes the modal step.
   bool                   ModalStep() const { return modal_step_on_; }
+  // The modal step or tangents at this step size use the dense G = A_m^-1 (C not diagonal in the basis).
+  bool                   ModalDense() const { return modal_dense_ && modal_h_ == h_; }
   void                   SetManySetUps(bool many) { many_setups_ = many; }
   // The caller wants W alone and takes no step (the energy estimate's impact losses): auto keeps the
   // nodal set-up, which needs no eigensolve.
@@ -166,7 +168,7 @@ public:
 private:
   PetscErrorCode SetUpDense();
   PetscErrorCode ModalBasisUpdate(); // the basis of (K, M) and modal_state_, for Md_, Kd_, Cd_
-  void           ModalPerStepSize(); // p1m_, p2m_, ainvm_, Htm_, Htmn_ at h_
+  PetscErrorCode ModalPerStepSize(bool dense); // p1m_, p2m_, ainvm_, Htm_, Htmn_ at h_; dense: G_, Ym_ too
   PetscErrorCode ModalStepSetUp();   // decides modal_step_on_; taken: W and p3m_ from the modal quantities
   PetscErrorCode EnsureNodal();      // P1_, P2_, p3_, Y_ and llt_ when the modal step skipped them
   PetscErrorCode DenseStep(Eigen::Ref<Eigen::VectorXd> U, Eigen::Ref<Eigen::VectorXd> dU, Eigen::VectorXd &r, StepInfo *info);
@@ -217,6 +219,11 @@ private:
   bool            modal_on_      = false;
   Eigen::MatrixXd Phi_, PhiInv_, Htm_, Htmn_; // Htmn_: Htm_'s normal rows
   Eigen::VectorXd mk_, mc_, p1m_, p2m_, ainvm_;
+  // Where C is not diagonal in the basis: C_m = Phi^T C Phi, and at modal_h_ (modal_dense_) G = A_m^-1
+  // and Ym = G (H^T Phi)^T; -theta_tangent_single: G - I, H^T Phi, its normal rows and Ym in float.
+  Eigen::MatrixXd Cm_, G_, Ym_;
+  Eigen::MatrixXf Gf_, Htmf_, Htmnf_, Ymf_;
+  bool            modal_dense_ = false, modal_f_ready_ = false;
   std::string     modal_why_;
   PetscInt        modal_step_ = 0;           // -theta_modal_step: 0 auto, 1 false, 2 true
   bool            modal_step_on_ = false, many_setups_ = false, delassus_only_ = false;
@@ -235,7 +242,7 @@ private:
   Eigen::MatrixXd tvf_, tdr_; // StepTangent work arrays
   // -theta_tangent_single: [P1 - I, P2] and Y rounded to float (formed at the first nodal tangent after a
   // set-up), and the float work arrays of their products.
-  Eigen::MatrixXf P12f_, Yf_, tXf_, tvff_, tdrff_;
+  Eigen::MatrixXf P12f_, Yf_, tXf_, tvff_, tdrff_, tHvf_, tGnf_;
   bool            nodal_f_ready_ = false;
   bool            TangentSingle() const { return tangent_single_ > 0 && n_ >= tangent_single_; }
   std::vector<int> tstatus_;
