@@ -121,12 +121,16 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
   const bool         modal = step && step->modal;
   PetscCheck(!modal || (modal_on_ && modal_h_ == h_), comm_, PETSC_ERR_ARG_WRONGSTATE,
              "modal step tangent without ModalTangent at this step size");
-  // The dense modal G in float: G - I, H^T Phi, its normal rows and Ym (the contact products).
-  const bool modal_f = modal && modal_dense_ && TangentSingle();
+  // Modal tangents in float: H^T Phi and its normal rows (the contact products, 3 (3 n_c) N of a
+  // diagonal step's multiply-adds), and with the dense G also G - I and Ym.
+  const bool modal_f = modal && TangentSingle();
   if (modal_f && !modal_f_ready_) {
-    Gf_ = G_.cast<float>();
-    Gf_.diagonal().array() -= 1.0f;
-    Htmf_ = Htm_.cast<float>(), Htmnf_ = Htmn_.cast<float>(), Ymf_ = Ym_.cast<float>();
+    Htmf_ = Htm_.cast<float>(), Htmnf_ = Htmn_.cast<float>();
+    if (modal_dense_) {
+      Gf_ = G_.cast<float>();
+      Gf_.diagonal().array() -= 1.0f;
+      Ymf_ = Ym_.cast<float>();
+    }
     modal_f_ready_ = true;
   }
   if (modal && modal_dense_) {
@@ -278,11 +282,17 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         else GemmFloat(Yf_, tdrff_, tvff_);
         tvf_ += h * tvff_.cast<double>();
       } else if (!modal) Gemm(Y_, false, tdrf_, tvf_, h, 1.0);
-      else if (modal_f) {
+      else if (modal_f && modal_dense_) {
         tdrff_ = tdrf_.cast<float>(), tvff_.resize(n_, k);
         if (k == 1) tvff_.col(0).noalias() = Ymf_ * tdrff_.col(0);
         else GemmFloat(Ymf_, tdrff_, tvff_);
         tvf_ += h * tvff_.cast<double>();
+      } else if (modal_f) {
+        // Phi^-1 Y = diag(1/a) (H^T Phi)^T, read from its float copy in place.
+        tdrff_ = tdrf_.cast<float>(), tvff_.resize(n_, k);
+        if (k == 1) tvff_.col(0).noalias() = Htmf_.transpose() * tdrff_.col(0);
+        else tvff_.noalias() = Htmf_.transpose() * tdrff_;
+        tvf_.array() += h * (tvff_.cast<double>().array().colwise() * ainvm_.array());
       } else if (modal && modal_dense_) Gemm(Ym_, false, tdrf_, tvf_, h, 1.0);
       else {
         // Phi^-1 Y = diag(1/a) (H^T Phi)^T, read from H^T Phi in place (one copy of it, not two).

@@ -188,7 +188,7 @@ private:
   PetscInt     fp_anderson_ = 5;                     // -theta_fp_anderson: depth of the mixing of the fixed point's passes
   PetscBool    fp_symmetric_ = PETSC_FALSE;          // -theta_fp_symmetric: symmetric Gauss-Seidel sweeps (dense W, run-time sizes)
   PetscInt     fp_single_ = 512;                     // -theta_fp_single: passes read h W in float from this many 3 n_c
-  PetscInt     tangent_single_ = 1024;               // -theta_tangent_single: nodal step tangents read P1, P2, Y in float from this many DOFs
+  PetscInt     tangent_single_ = 512;                // -theta_tangent_single: step tangents read their dense step matrices in float from this many DOFs
   bool         dense_     = true;
   const Model *model_     = nullptr;
   PetscInt     n_ = 0, nc_ = 0;
