@@ -46,6 +46,15 @@ bool Rank0()
   return rank == 0;
 }
 
+// k random tangent directions dZ0 (2N x k) and period changes dT (of 1e-3), the same on every rank.
+void RandomDirections(PetscInt N, Eigen::Index k, Eigen::MatrixXd &dZ0, Eigen::RowVectorXd &dT)
+{
+  dZ0 = Eigen::MatrixXd::Random(2 * N, k);
+  dT  = Eigen::RowVectorXd::Random(k) * 1e-3;
+  MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+  MPI_Bcast(dT.data(), (int)k, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+}
+
 // Shooting's state x at the converged cycle's start (sr.Z0, held on rank 0), on every rank.
 PetscErrorCode CycleStart(Problem &p, const ShootingResult &sr, Vec *x)
 {
@@ -1248,11 +1257,10 @@ TEST(Shooting, NodalTangentInFloatAgreesWithDouble)
   Eigen::MatrixXd block[2], one[2];
   PetscInt        N;
   VecGetSize(chain.eq.U, &N);
-  const Eigen::Index k   = 5;
-  Eigen::MatrixXd    dZ0 = Eigen::MatrixXd::Random(2 * N, k);
-  Eigen::RowVectorXd dT  = Eigen::RowVectorXd::Random(k) * 1e-3;
-  MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-  MPI_Bcast(dT.data(), (int)k, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+  const Eigen::Index k = 5;
+  Eigen::MatrixXd    dZ0;
+  Eigen::RowVectorXd dT;
+  RandomDirections(N, k, dZ0, dT);
   for (int single = 0; single < 2; ++single) {
     ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_tangent_single", single ? "1" : "0"), 0);
     ASSERT_EQ(chain.ti.SetFromOptions(), 0);
@@ -1297,10 +1305,9 @@ TEST(Shooting, ModalTangentsInFloatAgreeWithDouble)
     ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_modal_tangent", "true"), 0);
     PetscInt N;
     VecGetSize(chain.eq.U, &N);
-    Eigen::MatrixXd    dZ0 = Eigen::MatrixXd::Random(2 * N, 5), block[2];
-    Eigen::RowVectorXd dT  = Eigen::RowVectorXd::Random(5) * 1e-3;
-    MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-    MPI_Bcast(dT.data(), 5, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+    Eigen::MatrixXd    dZ0, block[2];
+    Eigen::RowVectorXd dT;
+    RandomDirections(N, 5, dZ0, dT);
     ShootingResult sr[2];
     for (int single = 0; single < 2; ++single) {
       ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_tangent_single", single ? "1" : "0"), 0);
@@ -1395,11 +1402,10 @@ TEST(Shooting, DenseModalStepAndTangentsGiveTheNodalCycle)
   chain.sh.Floquet().compute = PETSC_FALSE;
   PetscInt N;
   VecGetSize(chain.eq.U, &N);
-  const Eigen::Index k   = 5;
-  Eigen::MatrixXd    dZ0 = Eigen::MatrixXd::Random(2 * N, k);
-  Eigen::RowVectorXd dT  = Eigen::RowVectorXd::Random(k) * 1e-3;
-  MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
-  MPI_Bcast(dT.data(), (int)k, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+  const Eigen::Index k = 5;
+  Eigen::MatrixXd    dZ0;
+  Eigen::RowVectorXd dT;
+  RandomDirections(N, k, dZ0, dT);
   ShootingResult  sr[2];
   Eigen::MatrixXd block[2], one[2];
   for (int modal = 0; modal < 2; ++modal) {
