@@ -46,9 +46,12 @@ bool Rank0()
   return rank == 0;
 }
 
-// k random tangent directions dZ0 (2N x k) and period changes dT (of 1e-3), the same on every rank.
-void RandomDirections(PetscInt N, Eigen::Index k, Eigen::MatrixXd &dZ0, Eigen::RowVectorXd &dT)
+// k random tangent directions dZ0 (2N x k) of p's model and period changes dT (of 1e-3), the same on
+// every rank.
+void RandomDirections(const Problem &p, Eigen::Index k, Eigen::MatrixXd &dZ0, Eigen::RowVectorXd &dT)
 {
+  PetscInt N;
+  PetscCallAbort(PETSC_COMM_WORLD, VecGetSize(p.eq.U, &N));
   dZ0 = Eigen::MatrixXd::Random(2 * N, k);
   dT  = Eigen::RowVectorXd::Random(k) * 1e-3;
   MPI_Bcast(dZ0.data(), (int)dZ0.size(), MPI_DOUBLE, 0, PETSC_COMM_WORLD);
@@ -1242,72 +1245,30 @@ TEST(Shooting, ModalTangentFlowEqualsTheNodalOne)
   VecDestroy(&x);
 }
 
-TEST(Shooting, NodalTangentInFloatAgreesWithDouble)
+TEST(Shooting, TangentsInFloatAgreeWithDouble)
 {
-  // -theta_tangent_single: the nodal tangents' products with P1 - I, P2 and Y read them rounded to
-  // float. On the 4-contact chain's cycle (nodal tangents forced), a block of 5 columns and one
-  // column against the double ones: float's round-off carried over a period (measured 2.7e-6 to
-  // 1.3e-5 relative, by the random directions). The flows stay in double, so Newton with float
-  // tangents converges to the same cycle, and the Floquet multipliers (the chain's dense monodromy,
-  // from the same tangents) move by 3.6e-7.
-  std::srand(11);
-  Problem chain([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
-  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_modal_tangent", "false"), 0);
-  ShootingResult sr[2];
-  Eigen::MatrixXd block[2], one[2];
-  PetscInt        N;
-  VecGetSize(chain.eq.U, &N);
-  const Eigen::Index k = 5;
-  Eigen::MatrixXd    dZ0;
-  Eigen::RowVectorXd dT;
-  RandomDirections(N, k, dZ0, dT);
-  for (int single = 0; single < 2; ++single) {
-    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_tangent_single", single ? "1" : "0"), 0);
-    ASSERT_EQ(chain.ti.SetFromOptions(), 0);
-    ASSERT_EQ(chain.sh.Solve(chain.model, chain.eq, chain.ti, chain.est.U0, chain.est.dU0, chain.est.T0, sr[single]), 0);
-    ASSERT_TRUE(sr[single].converged);
-    ASSERT_GE(sr[single].floquet.size(), 4u);
-    Vec x;
-    ASSERT_EQ(CycleStart(chain, sr[0], &x), 0);
-    ASSERT_EQ(chain.sh.TangentFlow(x, dZ0, dT * sr[0].period, block[single]), 0);
-    ASSERT_EQ(chain.sh.TangentFlow(x, dZ0.col(2), (dT * sr[0].period).segment(2, 1), one[single]), 0);
-    VecDestroy(&x);
-  }
-  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-theta_tangent_single"), 0);
-  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-theta_modal_tangent"), 0);
-  ASSERT_EQ(chain.ti.SetFromOptions(), 0);
-  const double db = (block[1] - block[0]).norm() / block[0].norm(), d1 = (one[1] - one[0]).norm() / one[0].norm();
-  double       dl = 0;
-  for (size_t i = 0; i < 4; ++i) dl = std::max(dl, std::abs(sr[1].floquet[i] - sr[0].floquet[i]));
-  const double dp = std::abs(sr[1].period - sr[0].period) / sr[0].period;
-  if (Rank0())
-    std::printf("float against double nodal tangents: block of %d %.2e, one column %.2e; cycle's period %.2e, multipliers %.2e\n", (int)k, db, d1,
-                dp, dl);
-  EXPECT_GT(db, 1e-10); // the float products were taken
-  EXPECT_LT(db, 1e-4);
-  EXPECT_LT(d1, 1e-4);
-  EXPECT_LT(dp, 1e-10);
-  EXPECT_LT(dl, 1e-5);
-}
-
-TEST(Shooting, ModalTangentsInFloatAgreeWithDouble)
-{
-  // -theta_tangent_single on the modal tangents: H^T Phi and its normal rows in float, and with the
-  // dense G (a damping the modes do not diagonalise) G - I and G (H^T Phi)^T too. On the 4-contact
-  // chain's cycle, a block of 5 columns against the double tangents (measured 7.3e-6 and 1.7e-5),
-  // and the Floquet multipliers (8.9e-7).
-  for (bool dense : {false, true}) {
-    std::srand(13);
-    Problem chain([dense](Model &m) {
+  // -theta_tangent_single: the tangents' products with their dense step matrices in float. Nodal:
+  // P1 - I, P2 and Y; modal: H^T Phi and its normal rows, and with the dense G (a damping the modes
+  // do not diagonalise) G - I and G (H^T Phi)^T too. On the 4-contact chain's cycle, a block of 5
+  // columns and one column against the double tangents: float's round-off carried over a period
+  // (measured 2.7e-6 to 2.2e-5 relative, by the case and the random directions). The flows stay in
+  // double: Newton converges to the same cycle (to its tolerance: its path differs with the
+  // Jacobian, measured up to 1.8e-8), and the Floquet multipliers (the chain's dense monodromy, from
+  // the same tangents) move by 2e-7 to 9e-7. With P1 itself rounded, they had moved by 7.9e-6.
+  struct Case {
+    const char *name, *modal;
+    bool        dense;
+  };
+  for (const Case &c : {Case{"nodal", "false", false}, Case{"diagonal modal", "true", false}, Case{"dense modal", "true", true}}) {
+    std::srand(11);
+    Problem chain([&c](Model &m) {
       PetscCall(BuildChain(PETSC_COMM_WORLD, ChainParams{}, m));
-      return dense ? test::NonProportionalDamping(m) : PetscErrorCode(0);
+      return c.dense ? test::NonProportionalDamping(m) : PetscErrorCode(0);
     });
-    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_modal_tangent", "true"), 0);
-    PetscInt N;
-    VecGetSize(chain.eq.U, &N);
-    Eigen::MatrixXd    dZ0, block[2];
+    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_modal_tangent", c.modal), 0);
+    Eigen::MatrixXd    dZ0, block[2], one[2];
     Eigen::RowVectorXd dT;
-    RandomDirections(N, 5, dZ0, dT);
+    RandomDirections(chain, 5, dZ0, dT);
     ShootingResult sr[2];
     for (int single = 0; single < 2; ++single) {
       ASSERT_EQ(PetscOptionsSetValue(nullptr, "-theta_tangent_single", single ? "1" : "0"), 0);
@@ -1317,26 +1278,29 @@ TEST(Shooting, ModalTangentsInFloatAgreeWithDouble)
       ASSERT_GE(sr[single].floquet.size(), 4u);
       bool on = false;
       ASSERT_EQ(chain.ti.ModalTangent(&on), 0);
-      ASSERT_TRUE(on);
-      EXPECT_EQ(chain.ti.ModalDense(), dense);
+      EXPECT_EQ(on, c.modal[0] == 't');
+      EXPECT_EQ(chain.ti.ModalDense(), c.dense);
       Vec x;
       ASSERT_EQ(CycleStart(chain, sr[0], &x), 0);
       ASSERT_EQ(chain.sh.TangentFlow(x, dZ0, dT * sr[0].period, block[single]), 0);
+      ASSERT_EQ(chain.sh.TangentFlow(x, dZ0.col(2), (dT * sr[0].period).segment(2, 1), one[single]), 0);
       VecDestroy(&x);
     }
     ASSERT_EQ(PetscOptionsClearValue(nullptr, "-theta_tangent_single"), 0);
     ASSERT_EQ(PetscOptionsClearValue(nullptr, "-theta_modal_tangent"), 0);
     ASSERT_EQ(chain.ti.SetFromOptions(), 0);
-    const double db = (block[1] - block[0]).norm() / block[0].norm(), dp = std::abs(sr[1].period - sr[0].period) / sr[0].period;
+    const double db = (block[1] - block[0]).norm() / block[0].norm(), d1 = (one[1] - one[0]).norm() / one[0].norm();
+    const double dp = std::abs(sr[1].period - sr[0].period) / sr[0].period;
     double       dl = 0;
     for (size_t i = 0; i < 4; ++i) dl = std::max(dl, std::abs(sr[1].floquet[i] - sr[0].floquet[i]));
-    if (Rank0()) std::printf("%s modal tangents, float against double: block of 5 %.2e, period %.2e, multipliers %.2e\n", dense ? "dense" : "diagonal", db, dp, dl);
-    EXPECT_GT(db, 1e-10); // the float products were taken
-    EXPECT_LT(db, 1e-4);
-    // The same flows, but Newton's path to them differs with the Jacobian: the two cycles agree to
-    // its tolerance (measured 1.8e-8 diagonal, 4e-11 dense).
-    EXPECT_LT(dp, 1e-7);
-    EXPECT_LT(dl, 1e-5);
+    if (Rank0())
+      std::printf("%s tangents, float against double: block of 5 %.2e, one column %.2e; cycle's period %.2e, multipliers %.2e\n", c.name, db, d1,
+                  dp, dl);
+    EXPECT_GT(db, 1e-10) << c.name; // the float products were taken
+    EXPECT_LT(db, 1e-4) << c.name;
+    EXPECT_LT(d1, 1e-4) << c.name;
+    EXPECT_LT(dp, 1e-7) << c.name;
+    EXPECT_LT(dl, 1e-5) << c.name;
   }
 }
 
@@ -1400,12 +1364,10 @@ TEST(Shooting, DenseModalStepAndTangentsGiveTheNodalCycle)
     return test::NonProportionalDamping(m);
   });
   chain.sh.Floquet().compute = PETSC_FALSE;
-  PetscInt N;
-  VecGetSize(chain.eq.U, &N);
   const Eigen::Index k = 5;
   Eigen::MatrixXd    dZ0;
   Eigen::RowVectorXd dT;
-  RandomDirections(N, k, dZ0, dT);
+  RandomDirections(chain, k, dZ0, dT);
   ShootingResult  sr[2];
   Eigen::MatrixXd block[2], one[2];
   for (int modal = 0; modal < 2; ++modal) {
