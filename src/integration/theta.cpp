@@ -217,14 +217,16 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                               "ThetaIntegrator::SetFromOptions", hstorage, 3, hstorage[h_storage_], &h_storage_, nullptr));
   const char *const modal[] = {"auto", "false", "true"};
   PetscCall(PetscOptionsEList("-modal_tangent",
-                              "Dense back end: shooting's and Floquet's step tangents in the modal coordinates of (K, M), where C is "
-                              "diagonal too (O(n_c N) a column and step instead of O(N^2)); auto: when C is diagonal there and the "
-                              "products cost less than 0.8 x the nodal ones",
+                              "Dense back end: shooting's and Floquet's step tangents in the modal coordinates of (K, M): where C is "
+                              "diagonal there too, O(n_c N) a column and step instead of O(N^2); elsewhere with the dense G = A_m^-1, one "
+                              "N x N product instead of two; auto: when the step is modal with G, or the products cost less than 0.8 x the "
+                              "nodal ones",
                               "ThetaIntegrator::ModalTangent", modal, 3, modal[modal_tangent_], &modal_tangent_, nullptr));
   PetscCall(PetscOptionsEList("-modal_step",
-                              "Dense back end: the step in the same modal coordinates, where C is diagonal there to round-off (a step "
-                              "size's set-up without the O(N^3) solves; shooting sets up at every new period); auto: when a step reads no "
-                              "more than the nodal one and the caller sets up many step sizes (shooting), or reads at most 0.8 of it, N >= 64",
+                              "Dense back end: the step in the same modal coordinates (a step size's set-up without the nodal O(N^3) "
+                              "solves; shooting sets up at every new period): diagonal where C is diagonal there to round-off, else with the "
+                              "dense G = A_m^-1 (N^3 a set-up); auto: when a step reads no more than the nodal one and the caller sets up many "
+                              "step sizes (shooting), or reads at most 0.8 of it (diagonal C only), N >= 64",
                               "ThetaIntegrator::ModalStep", modal, 3, modal[modal_step_], &modal_step_, nullptr));
   const char *const psolvers[] = {"auto", "direct", "cg", "redundant"};
   PetscCall(PetscOptionsEList("-parallel_solver",
@@ -262,9 +264,9 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "the same stopping test (0: never)",
                             "LocalContactSolver::SetFixedPointSingle", fp_single_, &fp_single_, nullptr));
   PetscCall(PetscOptionsInt("-tangent_single",
-                            "Dense back end, nodal step tangents (shooting's Jacobian products, Floquet's blocks): from this many DOFs "
-                            "their products with the step matrices P1, P2 and Y read them rounded to float, half the time; the flows "
-                            "stay in double (0: never)",
+                            "Dense back end, step tangents (shooting's Jacobian products, Floquet's blocks): from this many DOFs their "
+                            "products with the dense step matrices (nodal P1 - I, P2, Y; modal H^T Phi, and G - I, G (H^T Phi)^T) read "
+                            "them rounded to float, half the time; the flows stay in double (0: never)",
                             "ThetaIntegrator::StepTangent", tangent_single_, &tangent_single_, nullptr));
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
@@ -777,7 +779,7 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
   if (dense_ && modal_state_ >= 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, "  step tangents: %s (-%smodal_tangent%s%s)%s\n", modal_on_ ? "modal" : "nodal", prefix_.c_str(),
                                      modal_why_.empty() ? "" : ": ", modal_why_.c_str(),
-                                     !modal_on_ && TangentSingle() ? ", products with P1, P2, Y in float (-theta_tangent_single)" : ""));
+                                     TangentSingle() ? ", products in float (-theta_tangent_single)" : ""));
   if (nc_ > 0 && local_.Solver() == ContactSolver::kNewton)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  contact solver: semi-smooth Newton (-%scontact_solver %s, at most %" PetscInt_FMT

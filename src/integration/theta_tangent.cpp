@@ -141,7 +141,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
       tXf_ = tX_.cast<float>(), tvff_.resize(n_, k);
       if (k == 1) tvff_.col(0).noalias() = Gf_ * tXf_.col(0);
       else GemmFloat(Gf_, tXf_, tvff_);
-      tvf_ = ddU - h * (dU.array().colwise() * mk_.array()).matrix() + tvff_.cast<double>();
+      tvf_ = tX_ - ((1 - t) / t) * ddU + tvff_.cast<double>(); // x - (1 - theta) / theta ddq = ddq - h k dq
     } else {
       tvf_.resize(n_, k);
       Gemm(G_, false, tX_, tvf_);
