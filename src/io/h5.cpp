@@ -6,7 +6,9 @@
 #include <cstring>
 #include <functional>
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 namespace squeal::io {
@@ -270,6 +272,43 @@ void H5Writer::EnsureGroup(const std::string &path)
   }
 }
 
+// A write that runs out of room (a full disk, the process's file size limit) cannot be undone:
+// HDF5 keeps the new dataset's metadata to write at the close, the close fails too, and the
+// library's own clean-up at MPI_Finalize then crashed (Debian's HDF5 1.10: a segmentation fault,
+// the results left in the hidden temporary file). So a dataset is checked against the room left
+// before it is created; refused, the file still closes with what was written before it.
+std::string H5Writer::RoomFor(const std::string &name, double bytes) const
+{
+  // The dataset's header, the file's metadata and the closing status attribute: well under this.
+  constexpr double  kSlack = 1048576.0;
+  const double      need   = bytes + kSlack;
+  const std::string dir    = DirName(tmp_);
+  char              b[512];
+  struct statvfs    fs;
+  // A file system that reports no size (some FUSE mounts: f_blocks 0) is not judged.
+  if (statvfs(dir.c_str(), &fs) == 0 && fs.f_blocks > 0) {
+    const double avail = (double)fs.f_bavail * (double)fs.f_frsize;
+    if (need > avail) {
+      std::snprintf(b, sizeof b,
+                    "no room for dataset %s (%.1f MiB) in results file '%s': %.1f MiB left on the file system of '%s'; free some, or "
+                    "give -output on another file system",
+                    name.c_str(), bytes / 1048576.0, path_.c_str(), avail / 1048576.0, dir.c_str());
+      return b;
+    }
+  }
+  struct rlimit lim;
+  struct stat   st;
+  if (getrlimit(RLIMIT_FSIZE, &lim) == 0 && lim.rlim_cur != RLIM_INFINITY && stat(tmp_.c_str(), &st) == 0 &&
+      (double)st.st_size + need > (double)lim.rlim_cur) {
+    std::snprintf(b, sizeof b,
+                  "no room for dataset %s (%.1f MiB) in results file '%s': the process's file size limit is %.1f MiB (ulimit -f) and the "
+                  "file holds %.1f MiB",
+                  name.c_str(), bytes / 1048576.0, path_.c_str(), (double)lim.rlim_cur / 1048576.0, (double)st.st_size / 1048576.0);
+    return b;
+  }
+  return "";
+}
+
 void H5Writer::WriteTyped(const char *path, const std::vector<hsize_t> &dims, hid_t type, const void *data)
 {
   const std::string p(path);
@@ -277,6 +316,19 @@ void H5Writer::WriteTyped(const char *path, const std::vector<hsize_t> &dims, hi
   if (!err_.empty()) return;
   hsize_t total = 1;
   for (hsize_t d : dims) total *= d;
+  {
+    const std::string room = RoomFor(p, (double)total * (double)H5Tget_size(type));
+    if (!room.empty()) {
+      // The group stays without this dataset; its attribute says so to whoever reads the file (in
+      // the slack RoomFor keeps).
+      const std::string group = p.substr(0, p.find_last_of('/'));
+      const hid_t       st    = H5Tcopy(H5T_C_S1);
+      if (st >= 0 && H5Tset_size(st, room.size() + 1) >= 0) WriteAttr(group.empty() ? "/" : group.c_str(), "incomplete", st, {}, room.c_str());
+      if (st >= 0) H5Tclose(st);
+      err_ = room;
+      return;
+    }
+  }
   const hid_t space = dims.empty() ? H5Screate(H5S_SCALAR) : H5Screate_simple((int)dims.size(), dims.data(), nullptr);
   if (space < 0) return Fail("create a dataspace");
   const hid_t dset = H5Dcreate2(file_, path, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);

@@ -18,6 +18,11 @@
   check_results_io.py refuse --output F -- cmd...
       F is a text file (a scene); cmd must fail with one "squeal: error:" line naming F and
       "not a squeal results file", and leave F byte for byte unchanged.
+  check_results_io.py no_room --output F --limit-mb L --dataset D [--period T] -- cmd...
+      Runs cmd under a file size limit of L MiB (SIGXFSZ ignored, as a full disk gives ENOSPC),
+      too small for dataset D: exit code 1 (not a crash), one error line naming D, F and the
+      limit; F under its name with status "failed ...", the stability table (unstable period T),
+      D absent and its group's attribute "incomplete" naming it; no temporary file left.
 """
 import glob
 import os
@@ -193,6 +198,42 @@ def refuse(args, cmd):
     no_temporaries(out)
 
 
+def no_room(args, cmd):
+    import resource
+
+    out, dataset = args["--output"], args["--dataset"]
+    limit = int(float(args["--limit-mb"]) * 1048576)
+    if os.path.exists(out):
+        os.remove(out)
+
+    def limited():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    print("+ " + " ".join(cmd))
+    p = subprocess.run(cmd, capture_output=True, text=True, preexec_fn=limited)
+    print(p.stdout[-2000:] + "\n--- stderr:\n" + p.stderr)
+    ok(p.returncode == 1, f"exit code {p.returncode} is 1 (a crash reads 139 or 134)")
+    lines = [l for l in p.stderr.splitlines() if l.startswith("squeal: error:")]
+    ok(len(lines) == 1 and dataset in lines[0] and out in lines[0] and "ulimit -f" in lines[0],
+       f"one error line naming {dataset}, the file and the limit")
+    no_temporaries(out)
+    if not ok(os.path.exists(out), f"{out} exists"):
+        return
+    with Results(out) as r:
+        ok(r.status.startswith("failed"), f"root status '{r.status}'")
+        T = r.stability.unstable_period()
+        ref = float(args.get("--period", "0.0109"))
+        ok(T is not None and abs(T - ref) / ref < 5e-3, f"stability table: unstable period {T} ~ {ref}")
+        group, name = dataset.rsplit("/", 1)
+        g = r.group(group.strip("/"))
+        if not ok(g is not None, f"{group} exists"):
+            return
+        ok(name not in g, f"{dataset} absent")
+        note = g.attrs.get("incomplete", "")
+        ok(dataset in note and "no room" in note, f"{group} says it is incomplete: '{note}'")
+
+
 def main():
     argv = sys.argv[1:]
     mode, argv = argv[0], argv[1:]
@@ -210,6 +251,8 @@ def main():
         concurrent(args, [rest[:k], rest[k + 1:]])
     elif mode == "refuse":
         refuse(args, rest)
+    elif mode == "no_room":
+        no_room(args, rest)
     else:
         sys.exit(__doc__)
     print("PASS" if failures == 0 else f"{failures} check(s) FAILED")

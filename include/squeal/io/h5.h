@@ -79,6 +79,9 @@ private:
   // Rank-0 parts: record the first failure in err_ instead of raising.
   void           EnsureGroup(const std::string &path);
   void           WriteTyped(const char *path, const std::vector<hsize_t> &dims, hid_t type, const void *data);
+  // Empty if `bytes` more fit on the temporary file's file system and under the process's file
+  // size limit; else the message that says why not.
+  std::string    RoomFor(const std::string &name, double bytes) const;
   void           WriteAttr(const char *object, const char *name, hid_t type, const std::vector<hsize_t> &dims,
                            const void *value);
   void           Fail(const char *what);
