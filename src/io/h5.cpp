@@ -2,6 +2,7 @@
 #include "squeal/core/interrupt.h"
 
 #include <cerrno>
+#include <climits>
 #include <cstdio>
 #include <cstring>
 #include <functional>
@@ -283,7 +284,7 @@ std::string H5Writer::RoomFor(const std::string &name, double bytes) const
   constexpr double  kSlack = 1048576.0;
   const double      need   = bytes + kSlack;
   const std::string dir    = DirName(tmp_);
-  char              b[512];
+  char              b[2 * PATH_MAX + 512]; // two paths (-output takes 300-character ones) and the numbers
   struct statvfs    fs;
   // A file system that reports no size (some FUSE mounts: f_blocks 0) is not judged.
   if (statvfs(dir.c_str(), &fs) == 0 && fs.f_blocks > 0) {
