@@ -301,7 +301,12 @@ PetscErrorCode CreateBasis(MPI_Comm comm, const cb::Partition &p, const cb::Inte
   for (PetscInt k = 0; k < b.m; ++k) {
     Vec       col;
     PetscReal nrm2;
-    PetscCall(EPSGetEigenvector(in.slice ? in.slice : in.eps, keep[k], x, nullptr));
+    if (in.modes) {
+      Vec xk;
+      PetscCall(MatDenseGetColumnVecRead(in.modes, keep[k], &xk));
+      PetscCall(VecCopy(xk, x));
+      PetscCall(MatDenseRestoreColumnVecRead(in.modes, keep[k], &xk));
+    } else PetscCall(EPSGetEigenvector(in.slice ? in.slice : in.eps, keep[k], x, nullptr));
     PetscCall(MatMult(in.Mii, x, y));
     PetscCall(VecDot(x, y, &nrm2));
     // Sign fixed by the entry of largest modulus, so that any rank count gives the same basis.
@@ -566,6 +571,18 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                              "Spectrum slicing on several ranks: the parts' boundaries where each holds as many modes (inertia "
                              "counts seek the median, at most 3 factorisations), not at equal widths of the interval",
                              "CraigBampton", slice_balance_, &slice_balance_, nullptr));
+  PetscCall(PetscOptionsInt("-lanczos_block",
+                            "Fixed-interface modes by block shift-and-invert Lanczos with this many columns a block (one rank, modes counted by "
+                            "-reduce_count_modes); 0: SLEPc's Krylov-Schur (-reduce_eps_*) or spectrum slicing (-reduce_slice)",
+                            "CraigBampton", lanczos_block_, &lanczos_block_, nullptr));
+  PetscCall(PetscOptionsInt("-lanczos_slice_modes", "Block Lanczos: the modes' interval is cut into slices of about this many modes, each at its own shift",
+                            "CraigBampton", lanczos_slice_modes_, &lanczos_slice_modes_, nullptr));
+  PetscCall(PetscOptionsBool("-lanczos_monitor", "Block Lanczos: print each slice's interval, shift, columns and residual", "CraigBampton",
+                             lanczos_monitor_, &lanczos_monitor_, nullptr));
+  SquealOptionsReal("-lanczos_tol", "Block Lanczos: the modes' relative residual estimates ||K^-1 M x - x / lambda|| lambda", "CraigBampton",
+                    &lanczos_tol_, Range::Positive(), checks);
+  SquealOptionsReal("-lanczos_max_mb", "Largest block Lanczos basis (MB, 16 n_I bytes a column: V and M V); beyond it the modes go to SLEPc",
+                    "CraigBampton", &lanczos_max_mb_, Range::Positive(), checks);
   PetscCall(PetscOptionsBool("-count_modes", "Count the modes below -reduce_fmax by the inertia of K_II - (2 pi fmax)^2 M_II (one more factorisation) and solve once",
                              "CraigBampton", count_modes_, &count_modes_, nullptr));
   PetscCall(PetscOptionsBool("-rayleigh", "Project Rayleigh damping C = a M + b K (detected to round-off) as a M_r + b K_r",
@@ -596,6 +613,10 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                     "CraigBampton", &iface_fmax_, Range::NonNegative(), checks);
   PetscOptionsEnd();
   PetscCall(checks.Run(comm_));
+  PetscCheck(lanczos_slice_modes_ >= 1, comm_, kErrInput, "option -%slanczos_slice_modes = %" PetscInt_FMT ": expected >= 1", prefix_.c_str(),
+             lanczos_slice_modes_);
+  PetscCheck(lanczos_block_ >= 0, comm_, kErrInput, "option -%slanczos_block = %" PetscInt_FMT ": expected >= 0 (0: SLEPc)", prefix_.c_str(),
+             lanczos_block_);
   const std::string pre = OptionName(prefix_.c_str(), "");
   if (type == 1) {
     if (fmax_ <= 0 && nmodes_ < 0) {
@@ -1007,8 +1028,91 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                           "; only the lowest %" PetscInt_FMT " are kept%s: raise -%smax_modes or lower -%sfmax\n",
                           nneg, (double)fmax_, prefix_.c_str(), max_modes_, nev, f, prefix_.c_str(), prefix_.c_str()));
   }
-  if (counted && nev > 0 && !slice) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
-  if (slice) {
+  // Counted, on one rank: block shift-and-invert Lanczos (src/reduction/block_lanczos.cpp), a
+  // block solve for each -reduce_lanczos_block columns, where SLEPc solves for one vector at a time
+  // (the size-1 brake's 802 modes: 1 472 single solves of 6.7 ms, 16.5 s). The interval is cut
+  // into slices of about -reduce_lanczos_slice_modes modes (a count at each cut, a factorisation
+  // of K_II - sigma M_II at each slice's middle): one basis for all 802 modes needed 2 176 columns
+  // and its orthogonalisation, O(n_I m^2), took 8 of 22.6 s. A slice whose basis would pass
+  // -reduce_lanczos_max_mb unconverged leaves all the modes to SLEPc below.
+  PetscMPIInt size = 1;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  // Not where the modes are a large part of the interior's (a small model): the basis would fill
+  // the space before it converges them, and SLEPc's dense-ish run is cheap there.
+  if (counted && nev > 0 && lanczos_block_ > 0 && size == 1 && 8 * nev <= nI && !(nneg > nev && !(w2slice < w2max))) {
+    const PetscReal w2l      = w2slice < w2max ? w2slice : w2max; // nev modes below it
+    const PetscInt  by_mem   = (PetscInt)PetscMin((PetscReal)PETSC_MAX_INT, lanczos_max_mb_ * 1048576.0 / (16.0 * (PetscReal)nI)); // V and M V
+    const PetscInt  nslices  = PetscMax(1, (PetscInt)std::lround((PetscReal)nev / (PetscReal)lanczos_slice_modes_));
+    std::vector<PetscReal> cut{0.0};  // the slices' ends
+    std::vector<PetscInt>  below{0};  // the modes below each
+    std::vector<std::pair<PetscReal, PetscInt>> counts{{w2l, nev}};
+    bool ok = true;
+    for (PetscInt k = 1; k < nslices && ok; ++k) {
+      const PetscReal w2c = LambdaAtCount(counts, (PetscReal)nev * k / nslices);
+      PetscInt        nc  = 0;
+      PetscLogDouble  tc  = 0;
+      if (!(w2c > cut.back() && w2c < w2l)) continue;
+      PetscCall(count(w2c, &nc, &ok, &tc));
+      if (ok && nc > below.back() && nc < nev) {
+        cut.push_back(w2c), below.push_back(nc);
+        counts.insert(std::upper_bound(counts.begin(), counts.end(), std::make_pair(w2c, nc)), std::make_pair(w2c, nc));
+      }
+    }
+    cut.push_back(w2l), below.push_back(nev);
+    cb::LanczosInfo li;
+    PetscReal       worst = 0;
+    if (ok) PetscCall(MatCreateDense(comm, nI, PETSC_DECIDE, nI, nev, nullptr, in.modes.out()));
+    for (size_t s = 0; ok && s + 1 < cut.size(); ++s) {
+      const PetscInt  ns    = below[s + 1] - below[s];
+      const PetscReal sigma = s == 0 ? 0.0 : 0.5 * (cut[s] + cut[s + 1]);
+      MatH            A, Fs;
+      Mat             F = in.Fct; // the slice at 0: K_II's own factor
+      if (s > 0) {
+        MatFactorInfo  finfo;
+        MatFactorError ferr;
+        PetscCall(MatDuplicate(in.Kii, MAT_COPY_VALUES, A.out()));
+        PetscCall(MatAXPY(A, -sigma, in.Mii, UNKNOWN_NONZERO_PATTERN));
+        PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
+        PetscCall(MatFactorInfoInitialize(&finfo));
+        PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, Fs.out()));
+        PetscCall(MatMumpsSetIcntl(Fs, 14, 100)); // indefinite: room for delayed pivots, as the counts
+        PetscCall(MatCholeskyFactorSymbolic(Fs, A, nullptr, &finfo));
+        PetscCall(MatCholeskyFactorNumeric(Fs, A, &finfo));
+        PetscCall(MatFactorGetError(Fs, &ferr));
+        if (ferr != MAT_FACTOR_NOERROR) {
+          ok = false;
+          break;
+        }
+        F = Fs;
+      }
+      // A slice of the size-1 brake converged in 3-5 columns a mode; a few modes of a small pad
+      // needed more than 160 columns for 17 (their spectrum's gaps, not their count, set it).
+      const PetscInt max_cols = PetscMin(by_mem, PetscMin(nI / 2, PetscMax(10 * ns + 16 * lanczos_block_, 400)));
+      PetscCall(cb::BlockLanczosModes(F, in.Mii, sigma, cut[s], cut[s + 1], ns, lanczos_block_, max_cols, lanczos_tol_, lam, in.modes, below[s], li));
+      ok    = li.converged;
+      worst = PetscMax(worst, li.residual);
+      if (lanczos_monitor_)
+        PetscCall(PetscPrintf(comm,
+                              "  block Lanczos slice %d: %" PetscInt_FMT " modes in [%.1f, %.1f] Hz at shift %.1f Hz: %s, %" PetscInt_FMT
+                              " columns so far, residual %.2e\n",
+                              (int)s, ns, (double)(std::sqrt(cut[s]) / (2 * PETSC_PI)), (double)(std::sqrt(cut[s + 1]) / (2 * PETSC_PI)),
+                              (double)(std::sqrt(sigma) / (2 * PETSC_PI)), ok ? "converged" : "NOT converged", li.columns, (double)li.residual));
+    }
+    if (ok) {
+      nconv = nev, slice = false;
+      info_.lanczos_block = li.block, info_.lanczos_columns = li.columns, info_.lanczos_solves = li.block_solves;
+      info_.lanczos_slices = (PetscInt)cut.size() - 1;
+    } else {
+      PetscCall(PetscPrintf(comm,
+                            "reduction: note: block Lanczos did not converge the %" PetscInt_FMT " modes (%" PetscInt_FMT
+                            " columns, residual %.1e; -%slanczos_max_mb %g): solved by SLEPc instead\n",
+                            nev, li.columns, (double)worst, prefix_.c_str(), (double)lanczos_max_mb_));
+      in.modes.reset();
+      lam.clear();
+    }
+  }
+  if (counted && nev > 0 && !slice && !in.modes) PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
+  if (slice && !in.modes) {
     auto count_only = [&](PetscReal w2, PetscInt *n, bool *ok) -> PetscErrorCode {
       PetscLogDouble t;
       return count(w2, n, ok, &t);
@@ -1031,7 +1135,7 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       PetscCall(EPSSetDimensions(in.eps, nev, in.ncv > nev ? in.ncv : PETSC_DEFAULT, in.mpd));
     }
   }
-  if (nmodes_ != 0 && !(counted && nev == 0) && !slice) {
+  if (nmodes_ != 0 && !(counted && nev == 0) && !slice && !in.modes) {
     for (;;) {
       PetscCall(EPSSolve(in.eps));
       PetscCall(Eigenvalues(in.eps, lam));
@@ -1106,6 +1210,7 @@ PetscErrorCode CraigBampton::Reduce(const Model &full, Model &red)
   info_.n_modes = (PetscInt)keep.size();
   for (PetscInt k : keep) info_.freq.push_back(std::sqrt(PetscMax(lam[k], 0.0)) / (2 * PETSC_PI));
   PetscCall(CreateBasis(comm, part, in, lam, keep, basis));
+  in.modes.reset();
   in.slice.reset(); // the slicing's copies of K_II, M_II and its factors, before the constraint modes
   PetscCall(PetscLogStagePop());
   PetscCall(PetscTime(&t[2]));
@@ -1232,6 +1337,9 @@ PetscErrorCode CraigBampton::View(PetscViewer viewer) const
                             info_.slice_parts, info_.slice_parts > 1 ? counts.c_str() : "", info_.slice_parts > 1 ? " modes, " : "",
                             info_.slice_per_shift));
   }
+  if (info_.lanczos_block > 0)
+    PetscCall(PetscSNPrintf(sliced, sizeof sliced, " by block Lanczos in %" PetscInt_FMT " slice(s) (%" PetscInt_FMT " columns in %" PetscInt_FMT " block solves of %" PetscInt_FMT ")",
+                            info_.lanczos_slices, info_.lanczos_columns, info_.lanczos_solves, info_.lanczos_block));
   if (info_.n_interface_statics > 0)
     PetscCall(PetscSNPrintf(statics, sizeof statics, " (%" PetscInt_FMT " of them the statics of the contact normals)", info_.n_interface_statics));
   if (info_.n_inplane_modes > 0)

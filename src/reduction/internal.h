@@ -31,6 +31,7 @@ struct Interior {
   MatH     Kii, Kib, Mii;
   EPSH     eps;
   EPSH     slice; // the modes by spectrum slicing, when many (CraigBampton::SliceModes); else eps holds them
+  MatH     modes; // the modes by block Lanczos (BlockLanczosModes), n_I x nev, in lam's order; else slice or eps holds them
   Mat      Fct       = nullptr; // owned by the ST's PC
   bool     redundant = false;   // a sequential factor of the whole K_II on every rank
   PetscInt nev       = 0;       // modes asked of the eigensolver
@@ -48,6 +49,23 @@ struct Basis {
 // Psi = -K_II^{-1} K_IB into the first nB columns of W, in blocks of `block` right-hand sides
 // (<= 0: one solve) with an interrupt poll between blocks; fails on a singular K_II.
 PetscErrorCode ConstraintModes(MPI_Comm comm, Mat F, Mat Kib, bool redundant, PetscBool sparse_rhs, PetscInt block, Mat W);
+
+// What BlockLanczosModes did, summed over its calls: the block size, the bases' columns, the block
+// solves, the checks of the Ritz values (and of them, those with the residual estimates); the
+// largest relative residual estimate of the last call's modes, and whether it converged them.
+struct LanczosInfo {
+  PetscInt  block = 0, columns = 0, block_solves = 0, checks = 0, full_checks = 0;
+  PetscReal residual = 0;
+  bool      converged = false;
+};
+
+// The nev modes of (K_II, M_II) in [lo, hi] (counted beforehand), by block shift-and-invert
+// Lanczos at sigma (lo <= sigma < hi; F the factor of K_II - sigma M_II) with blocks of b columns
+// and at most max_cols columns (8 n_I bytes each), to relative residual estimates below tol, on
+// one rank. When info.converged: their eigenvalues appended to lam, their M_II-orthonormal vectors
+// written to X(:, x0 : x0 + nev); else the caller takes another route.
+PetscErrorCode BlockLanczosModes(Mat F, Mat Mii, PetscReal sigma, PetscReal lo, PetscReal hi, PetscInt nev, PetscInt b, PetscInt max_cols,
+                                 PetscReal tol, std::vector<PetscReal> &lam, Mat X, PetscInt x0, LanczosInfo &info);
 
 // Interface reduction of the Craig-Bampton matrices Mp, Kp (contact order): T (n2 x (n_c + k + m))
 // maps [u_n, xi, eta] to the CB coordinates, k from k_max (< 0: no count limit) and fmax (Hz; <= 0:

@@ -213,6 +213,7 @@ TEST(Reduction, SpectrumSlicingGivesTheModesOfOneShift)
     CraigBampton cb(PETSC_COMM_WORLD);
     ASSERT_EQ(cb.SetFMax(150000), 0);
     ASSERT_EQ(cb.SetSlice(s), 0);
+    ASSERT_EQ(cb.SetLanczosBlock(0), 0); // SLEPc's routes, compared here
     ASSERT_EQ(cb.Reduce(full, red[s]), 0);
     info[s] = cb.Info();
   }
@@ -236,6 +237,54 @@ TEST(Reduction, SpectrumSlicingGivesTheModesOfOneShift)
   }
 }
 
+// Block Lanczos (the default on one rank) against SLEPc's Krylov-Schur at one shift: the same
+// fixed-interface modes, and the same reduced model's eigenvalues. Slices of 25 modes put shifts
+// inside the interval, where the modes on both sides of the shift are found.
+TEST(Reduction, BlockLanczosGivesTheModesOfSLEPc)
+{
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  if (size > 1) GTEST_SKIP() << "block Lanczos runs on one rank";
+  PadParams p = SmallPad();
+  p.n_r = 6, p.n_t = 24, p.n_fric = 2, p.n_steel = 2; // room in the interior for the basis (8 x the modes)
+  Model     full(PETSC_COMM_WORLD);
+  ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
+  Model         red[3] = {Model(PETSC_COMM_WORLD), Model(PETSC_COMM_WORLD), Model(PETSC_COMM_WORLD)};
+  ReductionInfo info[3];
+  const PetscInt block[3] = {0, 8, 5}, slice_modes[3] = {150, 150, 25};
+  for (int s = 0; s < 3; ++s) {
+    CraigBampton cb(PETSC_COMM_WORLD);
+    ASSERT_EQ(cb.SetFMax(26000), 0);
+    ASSERT_EQ(cb.SetSlice(0), 0);
+    ASSERT_EQ(cb.SetLanczosBlock(block[s]), 0);
+    ASSERT_EQ(cb.SetLanczosSliceModes(slice_modes[s]), 0);
+    ASSERT_EQ(cb.Reduce(full, red[s]), 0);
+    info[s] = cb.Info();
+  }
+  EXPECT_EQ(info[0].lanczos_block, 0);
+  ASSERT_GE(info[0].n_modes, 20);
+  EXPECT_EQ(info[1].lanczos_block, 8);
+  EXPECT_EQ(info[1].lanczos_slices, 1);
+  EXPECT_EQ(info[2].lanczos_block, 5);
+  EXPECT_GE(info[2].lanczos_slices, 3);
+  for (int s = 1; s < 3; ++s) {
+    ASSERT_EQ(info[0].freq.size(), info[s].freq.size());
+    for (size_t k = 0; k < info[0].freq.size(); ++k) EXPECT_NEAR(info[s].freq[k], info[0].freq[k], 1e-9 * info[0].freq[k]) << "mode " << k;
+  }
+  StabilityResult a;
+  ASSERT_TRUE(test::SolveStability(red[0], a, 12));
+  for (int s = 1; s < 3; ++s) {
+    StabilityResult b;
+    ASSERT_TRUE(test::SolveStability(red[s], b, 12));
+    ASSERT_EQ(a.modes.size(), b.modes.size());
+    for (size_t k = 0; k < a.modes.size(); ++k) {
+      const double mag = std::hypot(a.modes[k].sigma, a.modes[k].omega);
+      EXPECT_NEAR(b.modes[k].sigma, a.modes[k].sigma, 1e-8 * mag) << "eigenvalue " << k;
+      EXPECT_NEAR(b.modes[k].omega, a.modes[k].omega, 1e-8 * mag) << "eigenvalue " << k;
+    }
+  }
+}
+
 TEST(Reduction, SlicingPartsHoldAsManyModes)
 {
   // On several ranks the parts' boundaries are put at equal mode counts (inertia counts seek the
@@ -256,6 +305,7 @@ TEST(Reduction, SlicingPartsHoldAsManyModes)
     Model        red(PETSC_COMM_WORLD);
     ASSERT_EQ(cb.SetFMax(150000), 0);
     ASSERT_EQ(cb.SetSlice(1), 0);
+    ASSERT_EQ(cb.SetLanczosBlock(0), 0);
     ASSERT_EQ(cb.SetSliceBalance(balance == 1), 0);
     ASSERT_EQ(cb.Reduce(full, red), 0);
     info[balance] = cb.Info();
@@ -289,6 +339,7 @@ TEST(Reduction, SlicingUnderTheModeCapKeepsTheLowestModes)
     CraigBampton cb(PETSC_COMM_WORLD);
     ASSERT_EQ(cb.SetFMax(150000), 0);
     ASSERT_EQ(cb.SetSlice(0), 0);
+    ASSERT_EQ(cb.SetLanczosBlock(0), 0);
     ASSERT_EQ(cb.Reduce(full, red), 0);
     all = cb.Info().n_modes;
   }
@@ -300,6 +351,7 @@ TEST(Reduction, SlicingUnderTheModeCapKeepsTheLowestModes)
     ASSERT_EQ(cb.SetFMax(150000), 0);
     ASSERT_EQ(cb.SetMaxModes(cap), 0);
     ASSERT_EQ(cb.SetSlice(s), 0);
+    ASSERT_EQ(cb.SetLanczosBlock(0), 0); // SLEPc's routes, compared here
     ASSERT_EQ(cb.Reduce(full, red), 0);
     info[s] = cb.Info();
   }
@@ -503,6 +555,7 @@ TEST(Reduction, MassBlocksOfTheModesInClosedFormEqualTheDenseProjection)
     Model        red;
     ASSERT_EQ(cb.SetFMax(150000), 0);
     ASSERT_EQ(cb.SetSlice(slice), 0);
+    ASSERT_EQ(cb.SetLanczosBlock(0), 0);
     ASSERT_EQ(cb.SetRayleighShortcut(false), 0);
     ASSERT_EQ(cb.Reduce(full, red), 0);
     ASSERT_GE(cb.Info().n_modes, 100);
@@ -683,7 +736,7 @@ TEST(Reduction, KeptExpansionGivesTheFullStaticSolutionOfAnInterfaceLoad)
   for (PetscInt iface : {-1, 2 * nc}) {
     Model        red(PETSC_COMM_WORLD);
     CraigBampton cb(full.comm());
-    ASSERT_EQ(cb.SetFMax(20000), 0);
+    ASSERT_EQ(cb.SetFMax(26000), 0);
     ASSERT_EQ(cb.SetInterfaceModes(iface), 0);
     ASSERT_EQ(cb.SetKeepExpansion(true), 0);
     ASSERT_EQ(cb.Reduce(full, red), 0);

@@ -82,6 +82,7 @@ struct ReductionInfo {
   std::vector<PetscInt>  slice_counts;                      // the modes each part found, in ascending order of the parts
   PetscInt               slice_per_shift = 0;               // the modes a slicing shift asks for (-reduce_slice_eps_krylovschur_nev)
   std::vector<PetscReal> inplane_freq;
+  PetscInt               lanczos_block = 0, lanczos_columns = 0, lanczos_solves = 0, lanczos_slices = 0; // the fixed-interface modes by block Lanczos (0: not)
   PetscReal              time_expansion = 0; // s, building the kept expansion (0: none kept)
   size_t                 expansion_bytes = 0; // on rank 0
 };
@@ -112,6 +113,11 @@ public:
   // The fixed-interface modes below the cut-off by spectrum slicing (1), at one shift (0), or where
   // slicing is estimated cheaper (-1, the default; -reduce_slice). The same modes either way.
   PetscErrorCode SetSlice(PetscInt slice) { slice_ = slice; return 0; }
+  // The fixed-interface modes by block shift-and-invert Lanczos with blocks of b columns, on one
+  // rank with the modes counted (b > 0, default 8; -reduce_lanczos_block), in slices of about
+  // `modes` modes each (-reduce_lanczos_slice_modes); b = 0: by SLEPc as SetSlice says.
+  PetscErrorCode SetLanczosBlock(PetscInt b) { lanczos_block_ = b; return 0; }
+  PetscErrorCode SetLanczosSliceModes(PetscInt modes) { lanczos_slice_modes_ = modes; return 0; }
   PetscErrorCode SetSliceBalance(bool on) { slice_balance_ = on ? PETSC_TRUE : PETSC_FALSE; return 0; } // the parts at equal mode counts
   // Interface reduction: keep the k lowest characteristic constraint modes of the interface (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
@@ -159,6 +165,11 @@ private:
   PetscBool     slice_balance_ = PETSC_TRUE; // -reduce_slice_balance: the parts' boundaries at equal mode counts
   PetscBool     redundant_   = PETSC_TRUE;
   PetscInt      rhs_block_   = 32;
+  PetscInt      lanczos_block_  = 8;    // -reduce_lanczos_block (0: SLEPc)
+  PetscReal     lanczos_max_mb_ = 2048; // -reduce_lanczos_max_mb
+  PetscInt      lanczos_slice_modes_ = 150; // -reduce_lanczos_slice_modes
+  PetscBool     lanczos_monitor_ = PETSC_FALSE; // -reduce_lanczos_monitor
+  PetscReal     lanczos_tol_ = 1e-10; // -reduce_lanczos_tol
   PetscInt      iface_modes_ = -1;
   PetscReal     iface_fmax_  = 0;
   PetscInt      iface_statics_ = -1;
