@@ -118,6 +118,7 @@ public:
   // `modes` modes each (-reduce_lanczos_slice_modes); b = 0: by SLEPc as SetSlice says.
   PetscErrorCode SetLanczosBlock(PetscInt b) { lanczos_block_ = b; return 0; }
   PetscErrorCode SetLanczosSliceModes(PetscInt modes) { lanczos_slice_modes_ = modes; return 0; }
+  PetscErrorCode SetLanczosMaxMB(PetscReal mb) { lanczos_max_mb_ = mb; return 0; } // -reduce_lanczos_max_mb
   PetscErrorCode SetSliceBalance(bool on) { slice_balance_ = on ? PETSC_TRUE : PETSC_FALSE; return 0; } // the parts at equal mode counts
   // Interface reduction: keep the k lowest characteristic constraint modes of the interface (k < 0: no
   // limit by count; -reduce_interface_modes) and/or those below fmax Hz (<= 0: no frequency
