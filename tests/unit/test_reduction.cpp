@@ -249,7 +249,7 @@ TEST(Reduction, BlockLanczosGivesTheModesOfSLEPc)
   p.n_r = 6, p.n_t = 24, p.n_fric = 2, p.n_steel = 2; // room in the interior for the basis (8 x the modes)
   Model     full(PETSC_COMM_WORLD);
   ASSERT_EQ(BuildPad(PETSC_COMM_WORLD, p, full), 0);
-  // The fourth: a basis bounded to 1 MB (60 columns) cannot converge them: SLEPc's modes instead.
+  // The fourth: a basis bounded to 1 MB (31 columns) cannot hold them: SLEPc's modes instead.
   Model         red[4] = {Model(PETSC_COMM_WORLD), Model(PETSC_COMM_WORLD), Model(PETSC_COMM_WORLD), Model(PETSC_COMM_WORLD)};
   ReductionInfo info[4];
   const PetscInt  block[4] = {0, 8, 5, 8}, slice_modes[4] = {150, 150, 25, 150};
