@@ -1028,21 +1028,26 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
                           "; only the lowest %" PetscInt_FMT " are kept%s: raise -%smax_modes or lower -%sfmax\n",
                           nneg, (double)fmax_, prefix_.c_str(), max_modes_, nev, f, prefix_.c_str(), prefix_.c_str()));
   }
-  // Counted, on one rank: block shift-and-invert Lanczos (src/reduction/block_lanczos.cpp), a
-  // block solve for each -reduce_lanczos_block columns, where SLEPc solves for one vector at a time
-  // (the size-1 brake's 802 modes: 1 472 single solves of 6.7 ms, 16.5 s). The interval is cut
-  // into slices of about -reduce_lanczos_slice_modes modes (a count at each cut, a factorisation
-  // of K_II - sigma M_II at each slice's middle): one basis for all 802 modes needed 2 176 columns
-  // and its orthogonalisation, O(n_I m^2), took 8 of 22.6 s. A slice whose basis would pass
-  // -reduce_lanczos_max_mb unconverged leaves all the modes to SLEPc below.
-  PetscMPIInt size = 1;
+  // Counted: block shift-and-invert Lanczos (src/reduction/block_lanczos.cpp), a block solve for
+  // each -reduce_lanczos_block columns, where SLEPc solves for one vector at a time (the size-1
+  // brake's 802 modes: 1 472 single solves of 6.7 ms, 16.5 s). The interval is cut into slices of
+  // about -reduce_lanczos_slice_modes modes (a count at each cut, a factorisation of
+  // K_II - sigma M_II at each slice's middle): one basis for all 802 modes needed 2 176 columns and
+  // its orthogonalisation, O(n_I m^2), took 8 of 22.6 s. On several ranks (with the redundant
+  // factor: a whole K_II on every rank) the slices are dealt out, as many to each rank, each
+  // solved by its rank alone on whole copies of K_II and M_II, and every mode then sent to all.
+  // A slice whose basis would pass -reduce_lanczos_max_mb unconverged leaves all the modes to
+  // SLEPc below.
+  PetscMPIInt size = 1, rank = 0;
   PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
   // Not where the modes are a large part of the interior's (a small model): the basis would fill
   // the space before it converges them, and SLEPc's dense-ish run is cheap there.
-  if (counted && nev > 0 && lanczos_block_ > 0 && size == 1 && 8 * nev <= nI && !(nneg > nev && !(w2slice < w2max))) {
-    const PetscReal w2l      = w2slice < w2max ? w2slice : w2max; // nev modes below it
-    const PetscInt  by_mem   = (PetscInt)PetscMin((PetscReal)PETSC_MAX_INT, lanczos_max_mb_ * 1048576.0 / (16.0 * (PetscReal)nI)); // V and M V
-    const PetscInt  nslices  = PetscMax(1, (PetscInt)std::lround((PetscReal)nev / (PetscReal)lanczos_slice_modes_));
+  if (counted && nev > 0 && lanczos_block_ > 0 && (size == 1 || in.redundant) && 8 * nev <= nI && !(nneg > nev && !(w2slice < w2max))) {
+    const PetscReal w2l     = w2slice < w2max ? w2slice : w2max; // nev modes below it
+    const PetscInt  by_mem  = (PetscInt)PetscMin((PetscReal)PETSC_MAX_INT, lanczos_max_mb_ * 1048576.0 / (16.0 * (PetscReal)nI)); // V and M V
+    const PetscInt  per     = PetscMax(1, (PetscInt)std::lround((PetscReal)nev / ((PetscReal)lanczos_slice_modes_ * size)));
+    const PetscInt  nslices = per * size;
     std::vector<PetscReal> cut{0.0};  // the slices' ends
     std::vector<PetscInt>  below{0};  // the modes below each
     std::vector<std::pair<PetscReal, PetscInt>> counts{{w2l, nev}};
@@ -1059,19 +1064,30 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       }
     }
     cut.push_back(w2l), below.push_back(nev);
-    cb::LanczosInfo li;
-    PetscReal       worst = 0;
-    if (ok) PetscCall(MatCreateDense(comm, nI, PETSC_DECIDE, nI, nev, nullptr, in.modes.out()));
-    for (size_t s = 0; ok && s + 1 < cut.size(); ++s) {
+    const size_t ns_all = cut.size() - 1;
+    // Whole sequential copies of K_II and M_II on every rank (one rank: the matrices themselves).
+    MatH Kseq, Mseq;
+    Mat  Ks = in.Kii, Ms = in.Mii;
+    if (size > 1 && ok) {
+      PetscCall(MatCreateRedundantMatrix(in.Kii, size, PETSC_COMM_SELF, MAT_INITIAL_MATRIX, Kseq.out()));
+      PetscCall(MatCreateRedundantMatrix(in.Mii, size, PETSC_COMM_SELF, MAT_INITIAL_MATRIX, Mseq.out()));
+      Ks = Kseq, Ms = Mseq;
+    }
+    cb::LanczosInfo                     li;
+    PetscReal                           worst = 0;
+    std::vector<MatH>                   X(ns_all);   // this rank's slices' modes, every row
+    std::vector<std::vector<PetscReal>> lams(ns_all); // and their eigenvalues
+    for (size_t s = 0; ok && s < ns_all; ++s) {
+      if ((PetscMPIInt)(s % (size_t)size) != rank) continue;
       const PetscInt  ns    = below[s + 1] - below[s];
       const PetscReal sigma = s == 0 ? 0.0 : 0.5 * (cut[s] + cut[s + 1]);
       MatH            A, Fs;
-      Mat             F = in.Fct; // the slice at 0: K_II's own factor
+      Mat             F = in.Fct; // the slice at 0: K_II's own factor (sequential and whole on every rank when redundant)
       if (s > 0) {
         MatFactorInfo  finfo;
         MatFactorError ferr;
-        PetscCall(MatDuplicate(in.Kii, MAT_COPY_VALUES, A.out()));
-        PetscCall(MatAXPY(A, -sigma, in.Mii, UNKNOWN_NONZERO_PATTERN));
+        PetscCall(MatDuplicate(Ks, MAT_COPY_VALUES, A.out()));
+        PetscCall(MatAXPY(A, -sigma, Ms, UNKNOWN_NONZERO_PATTERN));
         PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
         PetscCall(MatFactorInfoInitialize(&finfo));
         PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, Fs.out()));
@@ -1088,26 +1104,67 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       // A slice of the size-1 brake converged in 3-5 columns a mode; a few modes of a small pad
       // needed more than 160 columns for 17 (their spectrum's gaps, not their count, set it).
       const PetscInt max_cols = PetscMin(by_mem, PetscMin(nI / 2, PetscMax(10 * ns + 16 * lanczos_block_, 400)));
-      PetscCall(cb::BlockLanczosModes(F, in.Mii, sigma, cut[s], cut[s + 1], ns, lanczos_block_, max_cols, lanczos_tol_, lam, in.modes, below[s], li));
+      PetscCall(MatCreateDense(PETSC_COMM_SELF, nI, PETSC_DECIDE, nI, ns, nullptr, X[s].out()));
+      PetscCall(cb::BlockLanczosModes(F, Ms, sigma, cut[s], cut[s + 1], ns, lanczos_block_, max_cols, lanczos_tol_, lams[s], X[s], 0, li));
       ok    = li.converged;
       worst = PetscMax(worst, li.residual);
-      if (lanczos_monitor_)
-        PetscCall(PetscPrintf(comm,
-                              "  block Lanczos slice %d: %" PetscInt_FMT " modes in [%.1f, %.1f] Hz at shift %.1f Hz: %s, %" PetscInt_FMT
+      if (lanczos_monitor_) {
+        char who[32] = "";
+        if (size > 1) std::snprintf(who, sizeof who, "[rank %d] ", (int)rank);
+        PetscCall(PetscPrintf(PETSC_COMM_SELF,
+                              "  %sblock Lanczos slice %d: %" PetscInt_FMT " modes in [%.1f, %.1f] Hz at shift %.1f Hz: %s, %" PetscInt_FMT
                               " columns so far, residual %.2e\n",
-                              (int)s, ns, (double)(std::sqrt(cut[s]) / (2 * PETSC_PI)), (double)(std::sqrt(cut[s + 1]) / (2 * PETSC_PI)),
+                              who, (int)s, ns, (double)(std::sqrt(cut[s]) / (2 * PETSC_PI)), (double)(std::sqrt(cut[s + 1]) / (2 * PETSC_PI)),
                               (double)(std::sqrt(sigma) / (2 * PETSC_PI)), ok ? "converged" : "NOT converged", li.columns, (double)li.residual));
+      }
+    }
+    {
+      PetscInt okl = ok ? 1 : 0, sums[2] = {li.columns, li.block_solves};
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &okl, 1, MPIU_INT, MPI_MIN, comm));
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 2, MPIU_INT, MPI_SUM, comm));
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPIU_REAL, MPI_MAX, comm));
+      ok = okl == 1, li.columns = sums[0], li.block_solves = sums[1];
     }
     if (ok) {
+      // Every slice's modes from its rank to all: each rank keeps its rows of in.modes.
+      PetscInt     nIloc, r0;
+      PetscScalar *dst;
+      PetscCall(MatGetLocalSize(in.Kii, &nIloc, nullptr));
+      PetscCall(MatGetOwnershipRange(in.Kii, &r0, nullptr));
+      PetscCall(MatCreateDense(comm, nIloc, PETSC_DECIDE, nI, nev, nullptr, in.modes.out()));
+      PetscCall(MatDenseGetArray(in.modes, &dst));
+      std::vector<PetscScalar> col(size > 1 ? (size_t)nI : 0);
+      PetscMPIInt              nImpi;
+      PetscCall(PetscMPIIntCast(nI, &nImpi));
+      for (size_t s = 0; s < ns_all; ++s) {
+        const PetscMPIInt owner = (PetscMPIInt)(s % (size_t)size);
+        const PetscInt    ns    = below[s + 1] - below[s];
+        const PetscScalar *x    = nullptr;
+        if (owner == rank) PetscCall(MatDenseGetArrayRead(X[s], &x));
+        lams[s].resize((size_t)ns);
+        PetscCallMPI(MPI_Bcast(lams[s].data(), (PetscMPIInt)ns, MPIU_REAL, owner, comm));
+        lam.insert(lam.end(), lams[s].begin(), lams[s].end());
+        for (PetscInt k = 0; k < ns; ++k) {
+          const PetscScalar *c = x ? x + (size_t)nI * (size_t)k : nullptr;
+          if (size > 1) {
+            if (owner == rank) std::copy(c, c + nI, col.begin());
+            PetscCallMPI(MPI_Bcast(col.data(), nImpi, MPIU_SCALAR, owner, comm));
+            c = col.data();
+          }
+          std::copy(c + r0, c + r0 + nIloc, dst + (size_t)nIloc * (size_t)(below[s] + k));
+        }
+        if (owner == rank) PetscCall(MatDenseRestoreArrayRead(X[s], &x));
+        X[s].reset();
+      }
+      PetscCall(MatDenseRestoreArray(in.modes, &dst));
       nconv = nev, slice = false;
-      info_.lanczos_block = li.block, info_.lanczos_columns = li.columns, info_.lanczos_solves = li.block_solves;
-      info_.lanczos_slices = (PetscInt)cut.size() - 1;
+      info_.lanczos_block = li.block > 0 ? li.block : lanczos_block_, info_.lanczos_columns = li.columns, info_.lanczos_solves = li.block_solves;
+      info_.lanczos_slices = (PetscInt)ns_all;
     } else {
       PetscCall(PetscPrintf(comm,
                             "reduction: note: block Lanczos did not converge the %" PetscInt_FMT " modes (%" PetscInt_FMT
                             " columns, residual %.1e; -%slanczos_max_mb %g): solved by SLEPc instead\n",
                             nev, li.columns, (double)worst, prefix_.c_str(), (double)lanczos_max_mb_));
-      in.modes.reset();
       lam.clear();
     }
   }

@@ -237,14 +237,14 @@ TEST(Reduction, SpectrumSlicingGivesTheModesOfOneShift)
   }
 }
 
-// Block Lanczos (the default on one rank) against SLEPc's Krylov-Schur at one shift: the same
-// fixed-interface modes, and the same reduced model's eigenvalues. Slices of 25 modes put shifts
-// inside the interval, where the modes on both sides of the shift are found.
+// Block Lanczos (the default) against SLEPc's Krylov-Schur at one shift: the same fixed-interface
+// modes, and the same reduced model's eigenvalues. Slices of 25 modes put shifts inside the
+// interval, where the modes on both sides of the shift are found; on several ranks the slices are
+// dealt out and their modes sent to all.
 TEST(Reduction, BlockLanczosGivesTheModesOfSLEPc)
 {
   PetscMPIInt size;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size > 1) GTEST_SKIP() << "block Lanczos runs on one rank";
   PadParams p = SmallPad();
   p.n_r = 6, p.n_t = 24, p.n_fric = 2, p.n_steel = 2; // room in the interior for the basis (8 x the modes)
   Model     full(PETSC_COMM_WORLD);
@@ -267,7 +267,7 @@ TEST(Reduction, BlockLanczosGivesTheModesOfSLEPc)
   EXPECT_EQ(info[0].lanczos_block, 0);
   ASSERT_GE(info[0].n_modes, 20);
   EXPECT_EQ(info[1].lanczos_block, 8);
-  EXPECT_EQ(info[1].lanczos_slices, 1);
+  EXPECT_EQ(info[1].lanczos_slices, size); // as many slices to every rank
   EXPECT_EQ(info[2].lanczos_block, 5);
   EXPECT_GE(info[2].lanczos_slices, 3);
   EXPECT_EQ(info[3].lanczos_block, 0);
@@ -277,14 +277,16 @@ TEST(Reduction, BlockLanczosGivesTheModesOfSLEPc)
   }
   StabilityResult a;
   ASSERT_TRUE(test::SolveStability(red[0], a, 12));
+  // Two eigensolves of the modes, each to 1e-10: the reduced eigenvalues agree to ~1e-8 (two SLEPc
+  // runs on two ranks: 1.05e-8 on a mode damped at -829 1/s), far inside the reduction's own 1e-3.
   for (int s = 1; s < 4; ++s) {
     StabilityResult b;
     ASSERT_TRUE(test::SolveStability(red[s], b, 12));
     ASSERT_EQ(a.modes.size(), b.modes.size());
     for (size_t k = 0; k < a.modes.size(); ++k) {
       const double mag = std::hypot(a.modes[k].sigma, a.modes[k].omega);
-      EXPECT_NEAR(b.modes[k].sigma, a.modes[k].sigma, 1e-8 * mag) << "eigenvalue " << k;
-      EXPECT_NEAR(b.modes[k].omega, a.modes[k].omega, 1e-8 * mag) << "eigenvalue " << k;
+      EXPECT_NEAR(b.modes[k].sigma, a.modes[k].sigma, 1e-7 * mag) << "eigenvalue " << k;
+      EXPECT_NEAR(b.modes[k].omega, a.modes[k].omega, 1e-7 * mag) << "eigenvalue " << k;
     }
   }
 }
