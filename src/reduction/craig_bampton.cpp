@@ -572,8 +572,9 @@ PetscErrorCode CraigBampton::SetFromOptions(bool *enabled)
                              "counts seek the median, at most 3 factorisations), not at equal widths of the interval",
                              "CraigBampton", slice_balance_, &slice_balance_, nullptr));
   PetscCall(PetscOptionsInt("-lanczos_block",
-                            "Fixed-interface modes by block shift-and-invert Lanczos with this many columns a block (one rank, modes counted by "
-                            "-reduce_count_modes); 0: SLEPc's Krylov-Schur (-reduce_eps_*) or spectrum slicing (-reduce_slice)",
+                            "Fixed-interface modes by block shift-and-invert Lanczos with this many columns a block (modes counted by "
+                            "-reduce_count_modes; on several ranks with -reduce_redundant, the slices dealt out); 0: SLEPc's "
+                            "Krylov-Schur (-reduce_eps_*) or spectrum slicing (-reduce_slice)",
                             "CraigBampton", lanczos_block_, &lanczos_block_, nullptr));
   PetscCall(PetscOptionsInt("-lanczos_slice_modes", "Block Lanczos: the modes' interval is cut into slices of about this many modes, each at its own shift",
                             "CraigBampton", lanczos_slice_modes_, &lanczos_slice_modes_, nullptr));

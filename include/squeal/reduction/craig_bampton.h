@@ -113,9 +113,10 @@ public:
   // The fixed-interface modes below the cut-off by spectrum slicing (1), at one shift (0), or where
   // slicing is estimated cheaper (-1, the default; -reduce_slice). The same modes either way.
   PetscErrorCode SetSlice(PetscInt slice) { slice_ = slice; return 0; }
-  // The fixed-interface modes by block shift-and-invert Lanczos with blocks of b columns, on one
-  // rank with the modes counted (b > 0, default 8; -reduce_lanczos_block), in slices of about
-  // `modes` modes each (-reduce_lanczos_slice_modes); b = 0: by SLEPc as SetSlice says.
+  // The fixed-interface modes by block shift-and-invert Lanczos with blocks of b columns, with the
+  // modes counted (and on several ranks the redundant factor; b > 0, default 8;
+  // -reduce_lanczos_block), in slices of about `modes` modes each (-reduce_lanczos_slice_modes),
+  // dealt out to the ranks; b = 0: by SLEPc as SetSlice says.
   PetscErrorCode SetLanczosBlock(PetscInt b) { lanczos_block_ = b; return 0; }
   PetscErrorCode SetLanczosSliceModes(PetscInt modes) { lanczos_slice_modes_ = modes; return 0; }
   PetscErrorCode SetLanczosMaxMB(PetscReal mb) { lanczos_max_mb_ = mb; return 0; } // -reduce_lanczos_max_mb
