@@ -920,6 +920,27 @@ PetscErrorCode CraigBampton::SliceModes(MPI_Comm comm, cb::Interior &in, PetscRe
   PetscFunctionReturn(0);
 }
 
+// F = the MUMPS Cholesky (LDL^T) factor of A = K - w2 M, for an inertia count (inertia: the root
+// node without ScaLAPACK, so that its pivots count too) or a shift-and-invert solve; *ferr its error.
+static PetscErrorCode FactorShifted(Mat K, Mat M, PetscReal w2, bool inertia, MatH &A, MatH &F, MatFactorError *ferr)
+{
+  MatFactorInfo finfo;
+  PetscFunctionBeginUser;
+  PetscCall(MatDuplicate(K, MAT_COPY_VALUES, A.out()));
+  PetscCall(MatAXPY(A, -w2, M, UNKNOWN_NONZERO_PATTERN));
+  PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
+  PetscCall(MatFactorInfoInitialize(&finfo));
+  PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, F.out()));
+  if (inertia) PetscCall(MatMumpsSetIcntl(F, 13, 1));
+  // An indefinite matrix delays pivots beyond the analysis' estimate (MUMPS's default 20 % more
+  // workspace): room for them, or the factorisation fails (a count lost, a slice left to SLEPc).
+  PetscCall(MatMumpsSetIcntl(F, 14, 100));
+  PetscCall(MatCholeskyFactorSymbolic(F, A, nullptr, &finfo));
+  PetscCall(MatCholeskyFactorNumeric(F, A, &finfo));
+  PetscCall(MatFactorGetError(F, ferr));
+  PetscFunctionReturn(0);
+}
+
 // Fixed-interface modes of (K_II, M_II) up to the cut-off: lam holds every converged eigenvalue,
 // keep the ones kept (ascending).
 PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partition &p, cb::Interior &in,
@@ -939,28 +960,16 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
   // (ok false if the factorisation failed: a mode at w2 itself, or out of memory); t its time.
   auto count = [&](PetscReal w2, PetscInt *nneg, bool *ok, PetscLogDouble *t) -> PetscErrorCode {
     MatH           A, F;
-    MatFactorInfo  finfo;
     MatFactorError ferr;
     PetscLogDouble t1;
     PetscFunctionBeginUser;
     *nneg = 0, *ok = false;
-    PetscCall(MatDuplicate(in.Kii, MAT_COPY_VALUES, A.out()));
-    PetscCall(MatAXPY(A, -w2, in.Mii, UNKNOWN_NONZERO_PATTERN));
-    PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
-    PetscCall(MatFactorInfoInitialize(&finfo));
-    PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, F.out()));
-    PetscCall(MatMumpsSetIcntl(F, 13, 1)); // the root node factorised without ScaLAPACK, so its pivots count
-    // An indefinite matrix delays pivots beyond the analysis' estimate (MUMPS's default 20 % more
-    // workspace): room for them, or the count is lost and the modes take the slow road below.
-    PetscCall(MatMumpsSetIcntl(F, 14, 100));
     PetscCall(PetscTime(t));
-    PetscCall(MatCholeskyFactorSymbolic(F, A, nullptr, &finfo));
-    PetscCall(MatCholeskyFactorNumeric(F, A, &finfo));
+    PetscCall(FactorShifted(in.Kii, in.Mii, w2, true, A, F, &ferr));
     PetscCall(PetscTime(&t1));
     *t = t1 - *t;
     // The slicing decision below is collective: every rank takes it from the same time.
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, t, 1, MPI_DOUBLE, MPI_MAX, comm));
-    PetscCall(MatFactorGetError(F, &ferr));
     if (ferr == MAT_FACTOR_NOERROR) {
       PetscCall(MatGetInertia(F, nneg, nullptr, nullptr));
       *ok = true;
@@ -1085,17 +1094,8 @@ PetscErrorCode CraigBampton::FixedInterfaceModes(MPI_Comm comm, const cb::Partit
       MatH            A, Fs;
       Mat             F = in.Fct; // the slice at 0: K_II's own factor (sequential and whole on every rank when redundant)
       if (s > 0) {
-        MatFactorInfo  finfo;
         MatFactorError ferr;
-        PetscCall(MatDuplicate(Ks, MAT_COPY_VALUES, A.out()));
-        PetscCall(MatAXPY(A, -sigma, Ms, UNKNOWN_NONZERO_PATTERN));
-        PetscCall(MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE));
-        PetscCall(MatFactorInfoInitialize(&finfo));
-        PetscCall(MatGetFactor(A, MATSOLVERMUMPS, MAT_FACTOR_CHOLESKY, Fs.out()));
-        PetscCall(MatMumpsSetIcntl(Fs, 14, 100)); // indefinite: room for delayed pivots, as the counts
-        PetscCall(MatCholeskyFactorSymbolic(Fs, A, nullptr, &finfo));
-        PetscCall(MatCholeskyFactorNumeric(Fs, A, &finfo));
-        PetscCall(MatFactorGetError(Fs, &ferr));
+        PetscCall(FactorShifted(Ks, Ms, sigma, false, A, Fs, &ferr));
         if (ferr != MAT_FACTOR_NOERROR) {
           ok = false;
           break;
