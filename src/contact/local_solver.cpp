@@ -1,5 +1,7 @@
 #include "squeal/contact/local_solver.h"
 
+#include <petscblaslapack.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -89,9 +91,22 @@ void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it, Pets
   for (Eigen::VectorXd *x : {&r0_, &F_, &Ft_, &d_, &rt_, &vt_, &hWd_}) x->setZero(m);
   SizeAnderson();
   g_.setZero(3, m), gd_.setZero(3, m);
+  last_steps_ = 0;
   if (!sparse_) {
-    J_.setZero(m, m);
-    lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m); // compute() on m x m then reuses its storage
+    if (!condensed_) {
+      J_.setZero(m, m);
+      lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>(m); // compute() on m x m then reuses its storage
+      hWP_.resize(0, 0), S_.resize(0, 0);
+      return;
+    }
+    J_.resize(0, 0), lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>();
+    const Eigen::Index nc = m / 3;
+    for (auto *x : {&pc_, &qc_, &pf_, &qf_, &qdf_}) x->setZero(3, m);
+    mc_.assign(nc, 0), mf_.assign(nc, 0), kf_.assign(nc, 0);
+    hWP_.setZero(m, m), S_.setZero(m, m); // at most m columns each: S's order is at most 3 n_c
+    t_.setZero(m), z_.setZero(m);
+    ipiv_.assign(m, 0);
+    ms_ = 0;
     return;
   }
   // Row block c of J is G_c D_c times rows 3c..3c+2 of h W, plus the diagonal block: the pattern is
@@ -108,6 +123,12 @@ void LocalContactSolver::SetSolver(ContactSolver s, PetscInt newton_max_it, Pets
   Js_.setFromTriplets(t.begin(), t.end());
   Js_.makeCompressed();
   slu_.analyzePattern(Js_);
+}
+
+void LocalContactSolver::SetNewtonCondensed(bool on)
+{
+  condensed_ = on;
+  if (solver_ == ContactSolver::kNewton && !sparse_) SetSolver(solver_, newton_max_it_, anderson_);
 }
 
 void LocalContactSolver::SetFixedPointAnderson(PetscInt depth)
@@ -318,24 +339,43 @@ PetscReal LocalContactSolver::Residual(CRef gap0, CRef r, CRef v, Eigen::VectorX
     // either side's derivative is a valid element of the generalised Jacobian: open and slip are taken.
     auto G = g_.middleCols<3>(o);
     G.setZero();
+    // G_c = P_c Q_c, of rank mc (condensed Newton on dense W): column j of P (pc_) and row j of Q (qc_).
+    const bool cond = condensed_ && !sparse_;
+    int        mcc  = 0;
+    auto       pq   = [&](PetscReal pt, PetscReal pb, PetscReal pn, PetscReal qt, PetscReal qb, PetscReal qn) {
+      if (!cond) return;
+      pc_(kT, o + mcc) = pt, pc_(kB, o + mcc) = pb, pc_(kN, o + mcc) = pn;
+      qc_(kT, o + mcc) = qt, qc_(kB, o + mcc) = qb, qc_(kN, o + mcc) = qn;
+      ++mcc;
+    };
     if (xn > 0) {
       G(kN, kN) = 1;
       if (rect) {
-        if (std::abs(xt) < a) G(kT, kT) = 1;
-        else G(kT, kN) = xt > 0 ? mu : (xt < 0 ? -mu : 0.0);
+        if (std::abs(xt) < a) {
+          G(kT, kT) = 1;
+          pq(1, 0, 0, 1, 0, 0), pq(0, 0, 1, 0, 0, 1);
+        } else {
+          G(kT, kN) = xt > 0 ? mu : (xt < 0 ? -mu : 0.0);
+          pq(G(kT, kN), 0, 1, 0, 0, 1);
+        }
       } else {
         const PetscReal m = std::hypot(xt, xb);
-        if (m < a) G(kT, kT) = G(kB, kB) = 1;
-        else if (m > 0) { // a x_T / |x_T|: (a / m)(I - u u^T) in x_T, mu u in x_n
+        if (m < a) {
+          G(kT, kT) = G(kB, kB) = 1;
+          pq(1, 0, 0, 1, 0, 0), pq(0, 1, 0, 0, 1, 0), pq(0, 0, 1, 0, 0, 1);
+        } else if (m > 0) { // a x_T / |x_T|: (a / m)(I - u u^T) in x_T, mu u in x_n
           const PetscReal ut = xt / m, ub = xb / m, f = a / m;
           G(kT, kT) = f * (1 - ut * ut);
           G(kT, kB) = G(kB, kT) = -f * ut * ub;
           G(kB, kB) = f * (1 - ub * ub);
           G(kT, kN) = mu * ut;
           G(kB, kN) = mu * ub;
-        }
+          pq(mu * ut, mu * ub, 1, 0, 0, 1); // (e_n + mu u) e_n^T
+          if (f > 0) pq(-f * ub, f * ut, 0, -ub, ut, 0); // f s s^T, s = (-u_b, u_t) (I - u u^T = s s^T)
+        } else pq(0, 0, 1, 0, 0, 1);
       }
     }
+    if (cond) mc_[c] = mcc;
     // dx/dr = I - D h W, D = diag(rho_t, rho_t, h rho_n)
     auto GD = gd_.middleCols<3>(o);
     GD.col(kT) = G.col(kT) * rho_t_[c];
@@ -372,11 +412,63 @@ void LocalContactSolver::AssembleJacobian()
       for (int b = 0; b < 3; ++b) Js_.coeffRef(3 * c + a, 3 * c + b) += (a == b ? 1.0 : 0.0) - g_(a, 3 * c + b);
 }
 
+bool LocalContactSolver::FactorCondensed()
+{
+  const Eigen::Index nc = rho_n_.size(), n = 3 * nc;
+  Eigen::Index       m  = 0;
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    const Eigen::Index o = 3 * c;
+    Eigen::Vector3d    dd; // D_c
+    dd[kT] = dd[kB] = rho_t_[c], dd[kN] = p_.h * rho_n_[c];
+    mf_[c] = mc_[c], kf_[c] = int(m);
+    for (int j = 0; j < mc_[c]; ++j) {
+      pf_.col(o + j)  = pc_.col(o + j);
+      qf_.col(o + j)  = qc_.col(o + j);
+      qdf_.col(o + j) = qc_.col(o + j).cwiseProduct(dd);
+    }
+    m += mc_[c];
+  }
+  ms_ = m;
+  if (m == 0) return true; // every point open: J = I
+  // h W P, then S = I - Q P + (Q D)(h W P).
+  Eigen::Map<Eigen::MatrixXd> hWP(hWP_.data(), n, m), S(S_.data(), m, m);
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    const Eigen::Index o = 3 * c;
+    for (int j = 0; j < mf_[c]; ++j)
+      hWP.col(kf_[c] + j).noalias() = hW_.col(o + kT) * pf_(kT, o + j) + hW_.col(o + kB) * pf_(kB, o + j) + hW_.col(o + kN) * pf_(kN, o + j);
+  }
+  // Column by column (both matrices column-major): block row c of S is m_c rows of Q_c D_c times
+  // rows 3c .. 3c + 2 of h W P. (Eigen's product per block row packed the whole of h W P each time.)
+  for (Eigen::Index j = 0; j < m; ++j) {
+    const PetscReal *x = hWP.col(j).data();
+    PetscReal       *y = S.col(j).data();
+    for (Eigen::Index c = 0; c < nc; ++c) {
+      const Eigen::Index o = 3 * c;
+      const PetscReal    x0 = x[o], x1 = x[o + 1], x2 = x[o + 2];
+      for (int i = 0; i < mf_[c]; ++i) *y++ = qdf_(0, o + i) * x0 + qdf_(1, o + i) * x1 + qdf_(2, o + i) * x2;
+    }
+  }
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    const Eigen::Index o = 3 * c, k = kf_[c], mcc = mf_[c];
+    if (mcc == 0) continue;
+    S.block(k, k, mcc, mcc) -= qf_.middleCols(o, mcc).transpose() * pf_.middleCols(o, mcc);
+    S.block(k, k, mcc, mcc).diagonal().array() += 1.0;
+  }
+  PetscBLASInt bm = static_cast<PetscBLASInt>(m), info = 0; // m <= 3 n_c; a NaN in S reaches the direction, which is checked
+  LAPACKgetrf_(&bm, &bm, S.data(), &bm, ipiv_.data(), &info);
+  return info == 0; // info > 0: S (so J) exactly singular
+}
+
 bool LocalContactSolver::Factor()
 {
-  AssembleJacobian();
   ++factorisations_;
   factor_valid_ = false;
+  if (!sparse_ && condensed_) {
+    if (!FactorCondensed()) return false;
+    factor_valid_ = true;
+    return true;
+  }
+  AssembleJacobian();
   if (!sparse_) lu_.compute(J_);
   else {
     slu_.factorize(Js_);
@@ -388,10 +480,37 @@ bool LocalContactSolver::Factor()
 
 bool LocalContactSolver::Direction()
 {
-  if (!sparse_) d_.noalias() = lu_.solve(F_);
-  else d_ = slu_.solve(F_);
-  d_ = -d_;
-  return d_.allFinite();
+  if (sparse_ || !condensed_) {
+    if (!sparse_) d_.noalias() = lu_.solve(F_);
+    else d_ = slu_.solve(F_);
+    d_ = -d_;
+    if (sparse_) hWd_.noalias() = hWs_ * d_;
+    else hWd_.noalias() = hW_ * d_;
+    return d_.allFinite();
+  }
+  // J^-1 F = F + P y, S y = Z F = Q F - (Q D)(h W F); h W J^-1 F = h W F + (h W P) y.
+  const Eigen::Index nc = rho_n_.size(), n = 3 * nc, m = ms_;
+  t_.noalias() = hW_ * F_;
+  d_ = F_, hWd_ = t_;
+  if (m > 0) {
+    // Per point at most 3 x 3: written out (Eigen's dynamic-size products dispatch a kernel each).
+    auto z = z_.head(m);
+    for (Eigen::Index c = 0; c < nc; ++c) {
+      const Eigen::Index o = 3 * c, k = kf_[c];
+      for (int j = 0; j < mf_[c]; ++j)
+        z[k + j] = qf_.col(o + j).dot(F_.segment<3>(o)) - qdf_.col(o + j).dot(t_.segment<3>(o));
+    }
+    PetscBLASInt bm = static_cast<PetscBLASInt>(m), one = 1, info = 0; // m <= 3 n_c, the order of W
+    LAPACKgetrs_("N", &bm, &one, S_.data(), &bm, ipiv_.data(), z.data(), &bm, &info);
+    if (info != 0) return false;
+    for (Eigen::Index c = 0; c < nc; ++c) {
+      const Eigen::Index o = 3 * c, k = kf_[c];
+      for (int j = 0; j < mf_[c]; ++j) d_.segment<3>(o) += pf_.col(o + j) * z[k + j];
+    }
+    hWd_.noalias() += Eigen::Map<const Eigen::MatrixXd>(hWP_.data(), n, m) * z;
+  }
+  d_ = -d_, hWd_ = -hWd_;
+  return d_.allFinite() && hWd_.allFinite();
 }
 
 Eigen::Index LocalContactSolver::AndersonSlot(PetscInt depth)
@@ -448,6 +567,7 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
   const Eigen::Index nc = rho_n_.size();
   p_.mu                 = cs_->Mu();
   ++newton_solves_;
+  if (refactor_after_ >= 0 && last_steps_ > refactor_after_) factor_valid_ = false; // SetNewtonRefactor
   Predict(r);
   r0_ = r; // the fallback's start: the fixed point's own guess
   if (sparse_) v_.noalias() = hWs_ * r;
@@ -481,8 +601,6 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
         if (fresh) break;
         continue;
       }
-      if (sparse_) hWd_.noalias() = hWs_ * d_;
-      else hWd_.noalias() = hW_ * d_;
       // Anderson mixing: the chord map is nearly linear between status changes, where the mixed
       // point converges as GMRES on the chord's error operator would, at O(3 n_c depth) per step
       // instead of the chord's linear rate. Taken when it halves ||F||, else the chord step.
@@ -520,6 +638,7 @@ LocalSolveInfo LocalContactSolver::SolveNewton(CRef w_f, CRef gap0, Ref r)
     phi = Residual(gap0, r, v_, F_, true);
   }
   newton_steps_ += k;
+  last_steps_ = k;
   LocalSolveInfo info;
   if (ok) info = Passes(w_f, gap0, r); // the fixed point's own stopping test (and v = w_f + h W r)
   if (!ok || !info.converged) {

@@ -122,10 +122,11 @@ PetscErrorCode ThetaIntegrator::SetFixedPoint(PetscReal tol, PetscInt max_it)
 
 // -theta_contact_solver auto: the fixed point, which with its passes mixed (-theta_fp_anderson) was
 // the faster on every model measured, side by side (transients, 200 steps per period,
-// docs/records.md): 451 points (pad_large_cycle.yaml, 800 steps) 10.5-10.8 s against 24.8 s for
-// ssn; 651 points (the size-2 brake reduced to 1594 DOFs, 400 steps) 23.9 s against 41.1 s. ssn
-// took one LU of the 3 n_c square J every few steps, and its chord steps cost two products with
-// h W each, against one for a pass. Before the mixing, auto took ssn from 450 points on.
+// docs/records.md): 451 points (pad_large_cycle.yaml, 800 steps) 10.3 s against 13.7 s for ssn
+// (18.9 passes a step against 4.4 Newton iterations and polishing passes, its condensed LU
+// refreshed after 3); 651 points (the size-2 brake reduced to 1594 DOFs, 400 steps) 23.9 s against
+// 41.1 s before the condensed LU. A chord step reads h W twice and S once, a pass h W once in float.
+// Before the mixing, auto took ssn from 450 points on.
 
 PetscErrorCode ThetaIntegrator::SetContactSolver(const char *name, PetscInt ssn_max_it, PetscInt ssn_anderson)
 {
@@ -250,6 +251,14 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "Semi-smooth Newton: Anderson mixing of this many past chord steps (steps with the kept LU), taken when it "
                             "halves the residual (0: plain chord steps; at most 8)",
                             "ThetaIntegrator::SetContactSolver", ssn_anderson_, &ssn_anderson_, nullptr));
+  PetscCall(PetscOptionsInt("-ssn_refactor",
+                            "Semi-smooth Newton: a fresh LU at a step's start when the step before took more than this many Newton "
+                            "iterations (-1: only when a chord step fails to halve the residual; 3 measured the fastest, docs/records.md)",
+                            "LocalContactSolver::SetNewtonRefactor", ssn_refactor_, &ssn_refactor_, nullptr));
+  PetscCall(PetscOptionsBool("-ssn_condensed",
+                             "Semi-smooth Newton on a dense W: factorise the system condensed on the closed points' rank of the projections' "
+                             "Jacobian (Woodbury; about a third of the LU of J on a sliding pad) instead of J itself",
+                             "LocalContactSolver::SetNewtonCondensed", ssn_condensed_, &ssn_condensed_, nullptr));
   PetscCall(PetscOptionsInt("-fp_anderson",
                             "Fixed point: Anderson mixing of this many past passes, each pass started from the mixed point "
                             "(run-time-sized and sparse steps; 0: plain passes; at most 8)",
@@ -278,6 +287,8 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
              prefix_.c_str(), fp_single_);
   PetscCheck(contact_predict_ >= 0 && contact_predict_ <= 2, comm_, kErrInput, "option -%scontact_predict %" PetscInt_FMT ": expected 0, 1 or 2",
              prefix_.c_str(), contact_predict_);
+  PetscCheck(ssn_refactor_ >= -1, comm_, kErrInput, "option -%sssn_refactor %" PetscInt_FMT ": expected -1 (never) or >= 0", prefix_.c_str(),
+             ssn_refactor_);
   PetscCall(SetContactSolver(csolvers[contact_solver_], ssn_max_it_, ssn_anderson_));
   PetscCall(SetFixedPoint(fp_tol_, fp_max_it_));
   PetscCall(SetDelassusMax(delassus_max_, delassus_drop_));
@@ -410,6 +421,8 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
   const bool ssn = contact_solver_ == 1;
   if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_, ssn_anderson_);
+  if (nc_ > 0 && ssn) local_.SetNewtonCondensed(ssn_condensed_);
+  local_.SetNewtonRefactor(ssn_refactor_);
   local_.SetPredictor(contact_predict_);
   local_.SetFixedPointAnderson(fp_anderson_);
   local_.SetFixedPointSymmetric(fp_symmetric_);
@@ -783,9 +796,11 @@ PetscErrorCode ThetaIntegrator::View(PetscViewer viewer) const
   if (nc_ > 0 && local_.Solver() == ContactSolver::kNewton)
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  contact solver: semi-smooth Newton (-%scontact_solver %s, at most %" PetscInt_FMT
-                                     " iterations), %" PetscInt_FMT " solves, %.2f Newton iterations and %.3f factorisations per solve, %" PetscInt_FMT
+                                     " iterations%s%s), %" PetscInt_FMT " solves, %.2f Newton iterations and %.3f factorisations per solve, %" PetscInt_FMT
                                      " fell back to the fixed point\n",
-                                     prefix_.c_str(), contact_solver_ == 1 ? "ssn" : "auto", ssn_max_it_, local_.NewtonSolves(),
+                                     prefix_.c_str(), contact_solver_ == 1 ? "ssn" : "auto", ssn_max_it_,
+                                     sparse_w_ ? ", sparse LU" : local_.NewtonCondensed() ? ", condensed LU" : ", LU of J",
+                                     ssn_refactor_ >= 0 ? (", fresh after " + std::to_string(ssn_refactor_) + " in a step").c_str() : "", local_.NewtonSolves(),
                                      local_.NewtonSolves() ? (double)local_.NewtonSteps() / local_.NewtonSolves() : 0.0,
                                      local_.NewtonSolves() ? (double)local_.Factorisations() / local_.NewtonSolves() : 0.0, local_.Fallbacks()));
   else if (nc_ > 0)

@@ -240,6 +240,55 @@ TEST(LocalSolver, NewtonFollowsTransitionsLikeFixedPoint)
   }
 }
 
+// Dense W: the Newton system solved through the condensed S (Woodbury on G = P Q, the default) and
+// through the LU of J itself take the same steps: the same number of Newton steps and factorisations
+// from a far start and along a sequence of problems whose points change state (every state, both
+// laws), and the same reactions to 1e-12. A fresh factor at every solve's start (SetNewtonRefactor(0))
+// gives the same reactions in fewer steps a solve.
+TEST(LocalSolver, CondensedNewtonStepsAreThoseOfTheWholeJacobian)
+{
+  std::mt19937 gen(23);
+  const double   h  = 1e-4;
+  const PetscInt nc = 24;
+  for (FrictionLaw law : {FrictionLaw::Planar, FrictionLaw::Rectilinear}) {
+    SCOPED_TRACE(FrictionLawName(law));
+    const ContactSet      cs = MakeSet(nc, 0.3, law, gen);
+    const Eigen::MatrixXd W  = RandomW(nc, gen);
+    LocalContactSolver    whole, cond, fresh;
+    for (LocalContactSolver *ls : {&whole, &cond, &fresh}) {
+      ls->Setup(cs, W, h, 1.0);
+      ls->SetTolerances(1e-14, 100000, 1.0);
+      ls->SetSolver(ContactSolver::kNewton);
+    }
+    whole.SetNewtonCondensed(false);
+    fresh.SetNewtonRefactor(0);
+    EXPECT_FALSE(whole.NewtonCondensed());
+    EXPECT_TRUE(cond.NewtonCondensed());
+    Eigen::VectorXd rw = Eigen::VectorXd::Zero(3 * nc);
+    for (PetscInt c = 0; c < nc; ++c) rw[3 * c + kN] = 500; // pressed, none in its final state
+    Eigen::VectorXd rc = rw, rf = rw;
+    for (int k = 0; k < 10; ++k) {
+      std::vector<State> states(nc);
+      for (PetscInt c = 0; c < nc; ++c) states[c] = State((c + k / 2) % 3); // a change every other problem
+      Problem pb = Construct(cs, W, h, states, gen);
+      const LocalSolveInfo iw = whole.Solve(pb.w_f, pb.gap0, rw), ic = cond.Solve(pb.w_f, pb.gap0, rc), i_f = fresh.Solve(pb.w_f, pb.gap0, rf);
+      EXPECT_TRUE(iw.converged && ic.converged && i_f.converged) << "problem " << k;
+      EXPECT_EQ(ic.iterations, iw.iterations) << "problem " << k;
+      EXPECT_LT(RelErr(rc, pb.r), 1e-12) << "problem " << k;
+      EXPECT_LT(RelErr(rc, rw), 1e-12) << "problem " << k;
+      EXPECT_LT(RelErr(rf, pb.r), 1e-12) << "problem " << k;
+      EXPECT_LT((cond.Velocity() - whole.Velocity()).lpNorm<Eigen::Infinity>(), 1e-12 * (1 + whole.Velocity().lpNorm<Eigen::Infinity>()));
+    }
+    EXPECT_EQ(cond.NewtonSteps(), whole.NewtonSteps());
+    EXPECT_EQ(cond.Factorisations(), whole.Factorisations());
+    EXPECT_EQ(cond.Fallbacks() + whole.Fallbacks() + fresh.Fallbacks(), 0);
+    EXPECT_GE(fresh.Factorisations(), fresh.NewtonSolves() - 1);
+    EXPECT_LT(fresh.NewtonSteps(), cond.NewtonSteps());
+    PetscPrintf(PETSC_COMM_WORLD, "%s: Newton steps %d (kept factor), %d (fresh at each solve), factorisations %d, %d\n", FrictionLawName(law),
+                (int)cond.NewtonSteps(), (int)fresh.NewtonSteps(), (int)cond.Factorisations(), (int)fresh.Factorisations());
+  }
+}
+
 // Newton made to fail (one iteration from a far start; a W whose Newton system is singular):
 // the fixed point from the starting guess gives exactly its own result, and the fallback is counted.
 TEST(LocalSolver, NewtonFailureFallsBackToFixedPoint)

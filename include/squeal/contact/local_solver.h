@@ -22,11 +22,15 @@
 // Lagrangian form). With x = r - D (v - (V_c, 0, 0)) (+ the gap term), D = diag(rho_t, rho_t, h rho_n)
 // per point, v = w_f + h W r, a generalised Jacobian is J = I - G (I - D h W), G block diagonal: the
 // Jacobian of each point's projection at x (open: 0; stick: I; slip: radial part of the disc, or the
-// clamp's d/dx_n for rectilinear friction). Each iteration solves J d = -F by LU (dense W:
-// PartialPivLU, O((3 n_c)^3); sparse W: SparseLU on the block pattern of W). The factorisation costs
-// as much as ~(3 n_c)/3 fixed-point passes, so it is kept, across iterations and steps, as long as
-// the step it gives (a chord step, O((3 n_c)^2)) halves ||F||_2; otherwise J is refactorised at
-// the current point and the Newton step halved until ||F||_2 decreases. The chord steps are
+// clamp's d/dx_n for rectilinear friction). Each iteration solves J d = -F by LU (sparse W: SparseLU
+// on the block pattern of W). Dense W: G has rank m below 3 n_c (open points 0, a sliding point 2 on
+// the disc or 1 on a line, a stuck one 3 or 2), G = P Q with P, Q block diagonal, so J = I - P Z,
+// Z = Q - Q D h W, and by Woodbury J^-1 F = F + P S^-1 Z F with S = I_m - Z P (m x m): LAPACK's LU
+// of S, not of J (on a sliding pad m ~ 2 n_c: a third of the LU's cost; SetNewtonCondensed(false)
+// factorises J itself). The factorisation costs as much as tens of fixed-point passes, so it is kept,
+// across iterations and steps, as long as the step it gives (a chord step, O((3 n_c)^2)) halves
+// ||F||_2 (and, with SetNewtonRefactor(k), until a solve takes more than k Newton steps); otherwise J
+// is refactorised at the current point and the Newton step halved until ||F||_2 decreases. The chord steps are
 // Anderson-mixed over the last few (SetSolver's anderson), which turns their linear rate into
 // about GMRES's on the chord's error operator. Converged (||F||_1 below the fixed point's criterion), the fixed-point
 // passes run from the Newton solution, so that the result passes the same stopping test as the fixed
@@ -209,6 +213,15 @@ public:
   // anderson: depth of the Anderson mixing of the chord steps (0: plain chord steps).
   void SetSolver(ContactSolver s, PetscInt newton_max_it = 30, PetscInt anderson = 0);
   ContactSolver Solver() const { return solver_; }
+  // Dense W: Newton's system factorised through its condensed form S (default) or as J itself (the
+  // same steps to rounding; tests compare the two). After SetSolver (resizes its arrays).
+  void SetNewtonCondensed(bool on);
+  bool NewtonCondensed() const { return condensed_; }
+  // Refactorise J at a solve's start when the solve before took more than k Newton steps (-1: only
+  // when a chord step fails to halve ||F||). The kept factor ages along a trajectory (slip directions
+  // turn) and its chord steps slow down; a fresh one at the extrapolated start converges in about two.
+  void     SetNewtonRefactor(PetscInt k) { refactor_after_ = k < 0 ? -1 : k; }
+  PetscInt NewtonRefactor() const { return refactor_after_; }
   // Starting guess on the run-time-sized paths (not the compile-time-sized kernels of SolveSized):
   // 0 the r given (the previous step's reaction), 1 or 2 its linear or quadratic extrapolation
   // from the last solutions, when the r given is the last solution returned (a step continuing a
@@ -219,7 +232,7 @@ public:
   // Drop what one solve hands the next (the predictor's solutions, Newton's kept factor, the mixing
   // history): the next solve starts as the first would. For replicas of this solver on several ranks
   // of which one alone has solved since (shooting's flows on several ranks), so that all start alike.
-  void     ForgetHistory() { n_hist_ = 0, factor_valid_ = false, a_n_ = 0; }
+  void     ForgetHistory() { n_hist_ = 0, factor_valid_ = false, a_n_ = 0, last_steps_ = 0; }
   // Anderson mixing of the fixed point's passes over the last `depth` (0: plain passes; at most 8),
   // on the run-time-sized and sparse paths (also the Newton's fallback); after Setup. A pass is
   // r -> G(r) (one Gauss-Seidel sweep); the next pass starts from the combination of the last
@@ -341,7 +354,8 @@ private:
   PetscReal Residual(CRef gap0, CRef r, CRef v, Eigen::VectorXd &F, bool jac);
   void      AssembleJacobian(); // J = I - G + G D h W from g_, gd_
   bool      Factor();           // assembles and factorises J at the current point; false if unusable
-  bool      Direction();        // d_ = -J^-1 F_ with the factor held; false if not finite
+  bool      Direction();        // d_ = -J^-1 F_ and hWd_ = h W d_ with the factor held; false if not finite
+  bool      FactorCondensed();  // Factor on dense W: S from the current P, Q (kept with it as pf_, qf_, qdf_)
   // Anderson mixing of a map r -> g(r) with f = g(r) - r: the chord map r - J0^-1 F(r) (J0 the
   // factor held) or a fixed-point pass. Mix writes to rt_, vt_ the combination of the history's g
   // (and, v being linear in r, of their v) whose f combine to the least norm. False when the
@@ -386,7 +400,19 @@ private:
   Eigen::VectorXd rx_, vx_;
   PetscReal       DriftBound(CRef r, PetscReal change) const; // b of SetFixedPointSingle
   Eigen::Matrix<PetscReal, 3, Eigen::Dynamic> g_, gd_; // per point (3 x 3 blocks side by side): G_c, G_c D_c
-  Eigen::MatrixXd                       J_;            // dense W
+  Eigen::MatrixXd                       J_;            // dense W, !condensed_
+  // Dense W, condensed_: per point c, columns 3c .. 3c + m_c - 1 hold P_c's columns (pc_) and Q_c's
+  // rows (qc_) at the last Jacobian's point; pf_, qf_, qdf_ (Q_c D_c's rows), mf_, kf_ (offset in S)
+  // those of the factor held; hWP_ = h W P (3 n_c x m) and S_ (m x m, LAPACK's LU in place) in
+  // storage sized once (3 n_c square each); t_ = h W F, z_ = Z F.
+  bool                                        condensed_ = true;
+  PetscInt                                    refactor_after_ = -1, last_steps_ = 0;
+  Eigen::Matrix<PetscReal, 3, Eigen::Dynamic> pc_, qc_, pf_, qf_, qdf_;
+  std::vector<int>                            mc_, mf_, kf_;
+  Eigen::Index                                ms_ = 0;
+  Eigen::MatrixXd                             hWP_, S_;
+  Eigen::VectorXd                             t_, z_;
+  std::vector<PetscBLASInt>                   ipiv_;
   Eigen::PartialPivLU<Eigen::MatrixXd>  lu_;
   Eigen::SparseMatrix<PetscReal>        Js_;           // sparse W: J on the 3 x 3 block pattern of W
   Eigen::SparseLU<Eigen::SparseMatrix<PetscReal>, Eigen::COLAMDOrdering<int>> slu_;

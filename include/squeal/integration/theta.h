@@ -184,6 +184,8 @@ private:
   PetscInt     fp_max_it_ = 500, dense_max_ = PETSC_DECIDE;
   PetscInt     contact_solver_ = 0, ssn_max_it_ = 30; // -theta_contact_solver: 0 fp, 1 ssn, 2 auto
   PetscInt     contact_predict_ = 2;                 // -theta_contact_predict: order of the starting guess's extrapolation
+  PetscInt     ssn_refactor_ = 3;                    // -theta_ssn_refactor: LocalContactSolver::SetNewtonRefactor
+  PetscBool    ssn_condensed_ = PETSC_TRUE;          // -theta_ssn_condensed: LocalContactSolver::SetNewtonCondensed
   PetscInt     ssn_anderson_ = 5;                    // -theta_ssn_anderson: depth of the mixing of Newton's chord steps
   PetscInt     fp_anderson_ = 5;                     // -theta_fp_anderson: depth of the mixing of the fixed point's passes
   PetscBool    fp_symmetric_ = PETSC_FALSE;          // -theta_fp_symmetric: symmetric Gauss-Seidel sweeps (dense W, run-time sizes)
