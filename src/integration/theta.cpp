@@ -253,7 +253,7 @@ PetscErrorCode ThetaIntegrator::SetFromOptions()
                             "ThetaIntegrator::SetContactSolver", ssn_anderson_, &ssn_anderson_, nullptr));
   PetscCall(PetscOptionsInt("-ssn_refactor",
                             "Semi-smooth Newton: a fresh LU at a step's start when the step before took more than this many Newton "
-                            "iterations (-1: only when a chord step fails to halve the residual; 3 measured the fastest, docs/records.md)",
+                            "iterations (-1: only when a chord step fails to halve the residual; 3 halves -1's iterations in about its time, docs/records.md)",
                             "LocalContactSolver::SetNewtonRefactor", ssn_refactor_, &ssn_refactor_, nullptr));
   PetscCall(PetscOptionsBool("-ssn_condensed",
                              "Semi-smooth Newton on a dense W: factorise the system condensed on the closed points' rank of the projections' "
@@ -420,8 +420,8 @@ PetscErrorCode ThetaIntegrator::SetUp(const Model &model, PetscReal h)
   else local_.Setup(model.contacts, W_, h, rho_scale_);
   local_.SetTolerances(fp_tol_, fp_max_it_, r_ref_);
   const bool ssn = contact_solver_ == 1;
+  local_.SetNewtonCondensed(ssn_condensed_); // before SetSolver, which then sizes Newton's arrays once
   if (nc_ > 0 && ssn) local_.SetSolver(ContactSolver::kNewton, ssn_max_it_, ssn_anderson_);
-  if (nc_ > 0 && ssn) local_.SetNewtonCondensed(ssn_condensed_);
   local_.SetNewtonRefactor(ssn_refactor_);
   local_.SetPredictor(contact_predict_);
   local_.SetFixedPointAnderson(fp_anderson_);

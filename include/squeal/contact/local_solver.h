@@ -214,7 +214,7 @@ public:
   void SetSolver(ContactSolver s, PetscInt newton_max_it = 30, PetscInt anderson = 0);
   ContactSolver Solver() const { return solver_; }
   // Dense W: Newton's system factorised through its condensed form S (default) or as J itself (the
-  // same steps to rounding; tests compare the two). After SetSolver (resizes its arrays).
+  // same steps to rounding; tests compare the two). Before SetSolver, or after it (then resizes its arrays).
   void SetNewtonCondensed(bool on);
   bool NewtonCondensed() const { return condensed_; }
   // Refactorise J at a solve's start when the solve before took more than k Newton steps (-1: only
