@@ -91,6 +91,39 @@ TEST(Energy, BalanceAtQ0AndSignChange)
   }
 }
 
+TEST(Energy, BracketedRootMeetsBisectionsPrecisionInFewerEvaluations)
+{
+  // Roots known in closed form: a smooth f, one with a kink next to the root (the power balance has
+  // kinks where points lift off or stick), one flat near its end (a plain regula falsi keeps one end
+  // there for ever) and a step (no better than bisection). The bracket's width after 60 halvings
+  // would be below a double's spacing: the root to round-off, in fewer calls than bisection's 60.
+  struct Case {
+    const char                        *name;
+    std::function<double(double)>      f;
+    double                             lo, hi, root;
+    PetscInt                           most;
+  };
+  const double r = std::sqrt(2.0);
+  const Case   cases[] = {
+    {"smooth", [&](double q) { return 2.0 - q * q; }, 1.0, 2.0, r, 12},
+    {"kink", [&](double q) { return q < 1.3 ? 4.0 * (1.5 - q) : 2.0 - q * q; }, 1.0, 2.0, r, 12},
+    {"flat end", [&](double q) { return std::pow(r - q, 3) + 1e-3 * (r - q); }, 0.0, 10.0, r, 50},
+    {"step", [&](double q) { return q < r ? 1.0 : -1.0; }, 1.0, 2.0, r, 64},
+  };
+  for (const Case &c : cases) {
+    PetscInt     n  = 0;
+    const double q0 = BracketedRoot(c.f, c.lo, c.f(c.lo), c.hi, c.f(c.hi), 60, &n);
+    if (PetscGlobalRank == 0) std::printf("%s: root within %.1e in %d evaluations\n", c.name, std::abs(q0 - c.root), (int)n);
+    EXPECT_NEAR(q0, c.root, 4e-16 * c.root) << c.name;
+    EXPECT_LE(n, c.most) << c.name;
+  }
+  // 10 halvings asked: the bracket within 2^-10 of its width, the root within it.
+  PetscInt     n  = 0;
+  const double q0 = BracketedRoot([](double q) { return q < 0.7 ? 1.0 : -1.0; }, 0.0, 1.0, 1.0, -1.0, 10, &n);
+  EXPECT_NEAR(q0, 0.7, std::ldexp(1.0, -10));
+  EXPECT_LE(n, 24);
+}
+
 TEST(Energy, SmallAmplitudeGrowthMatchesSigma)
 {
   // For small q: P_R - P_c ~ 2 sigma <E>, <E> = q^2/4 (omega^2 phi^H M phi + phi^H K phi).
