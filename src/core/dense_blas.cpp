@@ -46,34 +46,20 @@ void Gemm(const Eigen::Ref<const Eigen::MatrixXd> &A, bool transpose_a, const Ei
 extern "C" void sgemm_(const char *, const char *, const PetscBLASInt *, const PetscBLASInt *, const PetscBLASInt *, const float *, const float *,
                        const PetscBLASInt *, const float *, const PetscBLASInt *, const float *, float *, const PetscBLASInt *);
 
-void GemmFloat(const Eigen::Ref<const Eigen::MatrixXf> &A, const Eigen::Ref<const Eigen::MatrixXf> &B, Eigen::Ref<Eigen::MatrixXf> C)
+void GemmFloat(const Eigen::Ref<const Eigen::MatrixXf> &A, const Eigen::Ref<const Eigen::MatrixXf> &B, Eigen::Ref<Eigen::MatrixXf> C, bool transpose_a)
 {
-  const Eigen::Index m = A.rows(), k = A.cols(), n = B.cols();
+  const Eigen::Index m = transpose_a ? A.cols() : A.rows(), k = transpose_a ? A.rows() : A.cols(), n = B.cols();
   eigen_assert(B.rows() == k && C.rows() == m && C.cols() == n);
   if (m == 0 || n == 0) return;
   if (!UseBlas(n, 2, (double)m * k * n) || k == 0) {
-    C.noalias() = A * B;
+    if (transpose_a) C.noalias() = A.transpose() * B;
+    else C.noalias() = A * B;
     return;
   }
   const PetscBLASInt bm = (PetscBLASInt)m, bn = (PetscBLASInt)n, bk = (PetscBLASInt)k;
   const PetscBLASInt lda = (PetscBLASInt)A.outerStride(), ldb = (PetscBLASInt)B.outerStride(), ldc = (PetscBLASInt)C.outerStride();
   const float        one = 1, zero = 0;
-  sgemm_("N", "N", &bm, &bn, &bk, &one, A.data(), &lda, B.data(), &ldb, &zero, C.data(), &ldc);
-}
-
-void LuSolveInPlace(const Eigen::PartialPivLU<Eigen::MatrixXd> &lu, Eigen::MatrixXd &X, Eigen::Index min_cols)
-{
-  const Eigen::Index m = lu.rows(), n = X.cols();
-  if (m == 0 || n == 0) return;
-  if (!UseBlas(n, min_cols, (double)m * m * n)) {
-    X = lu.solve(X);
-    return;
-  }
-  X = lu.permutationP() * X;
-  const PetscBLASInt bm = (PetscBLASInt)m, bn = (PetscBLASInt)n, ld = (PetscBLASInt)lu.matrixLU().rows(), ldx = (PetscBLASInt)X.rows();
-  const double       one = 1.0;
-  BLAStrsm_("L", "L", "N", "U", &bm, &bn, &one, lu.matrixLU().data(), &ld, X.data(), &ldx);
-  BLAStrsm_("L", "U", "N", "N", &bm, &bn, &one, lu.matrixLU().data(), &ld, X.data(), &ldx);
+  sgemm_(transpose_a ? "T" : "N", "N", &bm, &bn, &bk, &one, A.data(), &lda, B.data(), &ldb, &zero, C.data(), &ldc);
 }
 
 } // namespace squeal

@@ -37,28 +37,53 @@ PetscErrorCode ThetaIntegrator::StepTangent(const Eigen::VectorXd &r, const Eige
 PetscErrorCode ThetaIntegrator::StepTangentSource(const Eigen::VectorXd &Ui, const Eigen::VectorXd &dUi, const Eigen::VectorXd &dUn,
                                                   const Eigen::VectorXd &r, Eigen::VectorXd &c)
 {
-  const PetscReal h = h_, t = theta_;
+  Eigen::MatrixXd dU(n_, 2), C;
+  PetscFunctionBeginUser;
+  dU.col(0) = dUi, dU.col(1) = dUn;
+  PetscCall(StepTangentSources(Ui, dU, r, C));
+  c = C.col(0);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ThetaIntegrator::StepTangentSources(const Eigen::Ref<const Eigen::MatrixXd> &U, const Eigen::Ref<const Eigen::MatrixXd> &dU,
+                                                   const Eigen::Ref<const Eigen::MatrixXd> &R, Eigen::MatrixXd &C)
+{
+  const PetscReal    h = h_, t = theta_;
+  const Eigen::Index s = U.cols();
   PetscFunctionBeginUser;
   PetscCheck(dense_, comm_, PETSC_ERR_SUP, "the exact step tangent needs the dense back end (N <= -theta_dense_max)");
-  tq_ = Fd_;
-  tq_.noalias() -= Kd_ * (Ui + 2 * h * t * (1 - t) * dUi + 2 * h * t * t * dUn);
-  if (model_->HasDamping()) tq_.noalias() -= Cd_ * ((1 - t) * dUi + t * dUn);
+  PetscCheck(dU.cols() == s + 1 && (nc_ == 0 || R.cols() == s), comm_, PETSC_ERR_ARG_SIZ, "StepTangentSources: %" PetscInt_FMT " steps need %" PetscInt_FMT " velocities and reactions",
+             (PetscInt)s, (PetscInt)(s + 1));
+  // All the steps' columns at once, matrix-matrix products: one step at a time they were
+  // matrix-vector products reading K, C and the modal basis (or the Cholesky factor) from memory
+  // for each step, 0.1 s a flow of 200 steps on the 562-DOF pad (records.md, "Step factors in float").
+  const auto      dUi = dU.leftCols(s), dUn = dU.rightCols(s);
+  Eigen::MatrixXd Q   = Fd_.replicate(1, s), X = U + (2 * h * t * (1 - t)) * dUi + (2 * h * t * t) * dUn;
+  Gemm(Kd_, false, X, Q, -1.0, 1.0);
+  if (model_->HasDamping()) {
+    X = (1 - t) * dUi + t * dUn;
+    Gemm(Cd_, false, X, Q, -1.0, 1.0);
+  }
+  C.resize(n_, s);
   if (!nodal_ready_) {
     // The modal step's set-up: A^-1 = Phi diag(1/a) Phi^T and Y r = Phi diag(1/a) (H^T Phi)^T r.
-    tYm_.noalias() = Phi_.transpose() * tq_;
+    Eigen::MatrixXd Ym(n_, s);
+    Gemm(Phi_, true, Q, Ym);
     if (modal_dense_) {
       // The dense G: A^-1 = Phi G Phi^T and Y r = Phi Ym r.
-      tYm_ = (G_.selfadjointView<Eigen::Lower>() * tYm_).eval();
-      if (nc_ > 0) tYm_.noalias() += Ym_ * r;
+      X.resize(n_, s);
+      X.noalias() = G_.selfadjointView<Eigen::Lower>() * Ym;
+      if (nc_ > 0) Gemm(Ym_, false, R, X, 1.0, 1.0);
+      Ym.swap(X);
     } else {
-      if (nc_ > 0) tYm_.noalias() += Htm_.transpose() * r;
-      tYm_.array() *= ainvm_.array();
+      if (nc_ > 0) Gemm(Htm_, true, R, Ym, 1.0, 1.0);
+      Ym.array().colwise() *= ainvm_.array();
     }
-    c.noalias() = Phi_ * tYm_;
+    Gemm(Phi_, false, Ym, C);
     PetscFunctionReturn(0);
   }
-  c = llt_.solve(tq_);
-  if (nc_ > 0) c.noalias() += Y_ * r;
+  C = llt_.solve(Q);
+  if (nc_ > 0) Gemm(Y_, false, R, C, 1.0, 1.0);
   PetscFunctionReturn(0);
 }
 
@@ -266,11 +291,32 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         }
       }
       if (step && step->factor) {
-        if (!step->factor->valid) step->factor->lu.compute(tAc_), step->factor->valid = true;
-        // One column through the vector triangular solves (the matrix ones pack the factor).
-        tdr_.resize(m, k);
-        if (k == 1) tdr_.col(0) = step->factor->lu.solve(trc_.col(0));
-        else tdr_ = trc_, LuSolveInPlace(step->factor->lu, tdr_);
+        StepData::Factor &f      = *step->factor;
+        const bool        single = TangentSingle();
+        if (!f.valid) {
+          f.lu.compute(tAc_), f.valid = true;
+          if (single) {
+            // Factorised in double, kept in float: the solves' error is then that of a backward
+            // perturbation of the factors by float's rounding, as the float products' above.
+            f.luf  = f.lu.matrixLU().cast<float>();
+            f.perm = f.lu.permutationP();
+            f.lu   = Eigen::PartialPivLU<Eigen::MatrixXd>();
+          }
+        }
+        // Eigen's triangular solves, not BLAS's dtrsm: at m = 350 and 16 columns (a Floquet block on
+        // the 2 625-DOF pad) dtrsm took 397 us against Eigen's 267, 230 in float (records.md).
+        if (single) {
+          tdrff_ = (f.perm * trc_).cast<float>();
+          if (k == 1) {
+            auto x = tdrff_.col(0); // the vector solves
+            f.luf.triangularView<Eigen::UnitLower>().solveInPlace(x);
+            f.luf.triangularView<Eigen::Upper>().solveInPlace(x);
+          } else {
+            f.luf.triangularView<Eigen::UnitLower>().solveInPlace(tdrff_);
+            f.luf.triangularView<Eigen::Upper>().solveInPlace(tdrff_);
+          }
+          tdr_ = tdrff_.cast<double>();
+        } else tdr_ = f.lu.solve(trc_);
       } else tdr_ = tAc_.partialPivLu().solve(trc_);
       // delta dU^{i+1} += h Y delta r, with delta r = 0 on the open points (Y read in place).
       tdrf_.setZero(3 * nc_, k);
@@ -294,7 +340,7 @@ PetscErrorCode ThetaIntegrator::StepTangentImpl(const Eigen::VectorXd &r, const 
         // Phi^-1 Y = diag(1/a) (H^T Phi)^T, read from its float copy in place.
         tdrff_ = tdrf_.cast<float>(), tvff_.resize(n_, k);
         if (k == 1) tvff_.col(0).noalias() = Htmf_.transpose() * tdrff_.col(0);
-        else tvff_.noalias() = Htmf_.transpose() * tdrff_;
+        else GemmFloat(Htmf_, tdrff_, tvff_, true); // sgemm: Eigen's transposed product packed H^T Phi, twice the time
         tvf_.array() += h * (tvff_.cast<double>().array().colwise() * ainvm_.array());
       } else if (modal && modal_dense_) Gemm(Ym_, false, tdrf_, tvf_, h, 1.0);
       else {

@@ -1,4 +1,4 @@
-// Dense products and LU solves through BLAS (core/dense_blas.h) against sums written out here.
+// Dense products through BLAS (core/dense_blas.h) against sums written out here.
 #include "squeal/core/bordered_lu.h"
 #include "squeal/core/dense_blas.h"
 
@@ -60,23 +60,30 @@ TEST(DenseBlas, ProductsOfBlocksMatchTheSumsInEitherOrientation)
       }
 }
 
-TEST(DenseBlas, LuSolveSolvesThePermutedSystem)
+TEST(DenseBlas, FloatProductsMatchTheSumsInEitherOrientation)
 {
-  // A with small leading entries, so that partial pivoting permutes rows: A X = B to round-off,
-  // for 1, 2 and 24 right-hand sides (one column stays in Eigen).
-  std::srand(11);
-  const Eigen::Index m = 90;
-  Eigen::MatrixXd    A = Eigen::MatrixXd::Random(m, m);
-  A.diagonal() *= 1e-3;
-  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(A);
-  ASSERT_TRUE((lu.permutationP().indices().array() != Eigen::ArrayXi::LinSpaced(m, 0, (int)m - 1)).any());
-  for (Eigen::Index n : {1, 2, 24}) {
-    const Eigen::MatrixXd B = Eigen::MatrixXd::Random(m, n);
-    Eigen::MatrixXd       X = B;
-    LuSolveInPlace(lu, X);
-    const double res = (A * X - B).norm() / (A.norm() * X.norm());
-    EXPECT_LT(res, 1e-14) << n << " right-hand sides";
-  }
+  // GemmFloat: op(A) B on blocks of larger float matrices, C overwritten (it holds NaNs), against
+  // the long-double sums of the same float operands: float's round-off of sums of k terms.
+  std::srand(5);
+  struct Case {
+    Eigen::Index m, k, n;
+  };
+  for (const Case c : {Case{131, 97, 16}, Case{131, 97, 1}, Case{12, 9, 5}, Case{525, 562, 4}})
+    for (bool t : {false, true}) {
+      const Eigen::MatrixXf Abig = Eigen::MatrixXf::Random(t ? c.k + 3 : c.m + 3, t ? c.m + 2 : c.k + 2);
+      const Eigen::MatrixXf Bbig = Eigen::MatrixXf::Random(c.k + 5, c.n + 1);
+      Eigen::MatrixXf       Cbig = Eigen::MatrixXf::Random(c.m + 4, c.n + 2);
+      Cbig.block(2, 1, c.m, c.n).setConstant(std::numeric_limits<float>::quiet_NaN());
+      Eigen::MatrixXf around = Cbig;
+      const auto      A      = t ? Abig.block(1, 1, c.k, c.m) : Abig.block(1, 1, c.m, c.k);
+      const Eigen::MatrixXd ref = Reference(A.cast<double>(), t, Bbig.block(3, 0, c.k, c.n).cast<double>(), Eigen::MatrixXd::Zero(c.m, c.n), 1.0, 0.0);
+      GemmFloat(A, Bbig.block(3, 0, c.k, c.n), Cbig.block(2, 1, c.m, c.n), t);
+      const double err = (Cbig.block(2, 1, c.m, c.n).cast<double>() - ref).norm() / ref.norm();
+      EXPECT_LT(err, 1e-6) << c.m << " x " << c.k << " x " << c.n << (t ? " transposed" : "");
+      Eigen::MatrixXf after = Cbig;
+      around.block(2, 1, c.m, c.n).setZero(), after.block(2, 1, c.m, c.n).setZero();
+      EXPECT_TRUE(after == around);
+    }
 }
 
 // The bordered LU (core/bordered_lu.h): after the factor of one bordered matrix, solves with other

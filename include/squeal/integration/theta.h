@@ -99,9 +99,14 @@ public:
     // reactions and velocities, not on the columns), kept by the caller so that later tangent
     // products along the same stored flow skip the O((3 n_c)^3) factorisation. Reset it (valid =
     // false) whenever the flow or the step size changes.
+    // With float products (-theta_tangent_single) the factors are kept rounded to float (luf, perm;
+    // lu emptied): half the memory, and the solves, which read a factor once per step from main
+    // memory, take half the time (docs/records.md, "Step factors in float").
     struct Factor {
-      bool                                 valid = false;
-      Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+      bool                                                              valid = false;
+      Eigen::PartialPivLU<Eigen::MatrixXd>                              lu;
+      Eigen::MatrixXf                                                   luf;
+      Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>     perm;
     } *factor = nullptr;
     // The columns, c, dUi and dUn in the modal coordinates of ModalTangent (q = Phi^-1 U).
     bool modal = false;
@@ -111,10 +116,16 @@ public:
   // The order of that step's closed-point system (its factor holds the square of it): 3 per
   // sticking point, 2 per sliding one (1 rectilinear), 0 per open one.
   Eigen::Index TangentSystemSize(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end);
+  // Bytes of a stored factor (StepData::Factor) of a system of order m: 8 m (m + 1), half in float.
+  double       TangentFactorBytes(Eigen::Index m) const { return (TangentSingle() ? 4.0 : 8.0) * (double)m * (double)(m + 1); }
   // c = d dU^{i+1} / dh at fixed (U^i, dU^i) and r: A^-1 [B' dU^i - K U^i + F - A' dU^{i+1}] + Y r, with
   // A' = theta C + 2 h theta^2 K and B' = -(1 - theta) C - 2 h theta (1 - theta) K. Dense back end.
   PetscErrorCode StepTangentSource(const Eigen::VectorXd &Ui, const Eigen::VectorXd &dUi, const Eigen::VectorXd &dUn,
                                    const Eigen::VectorXd &r, Eigen::VectorXd &c);
+  // The same for s steps of a stored flow at once: U = [U^0 .. U^{s-1}], dU = [dU^0 .. dU^s], R =
+  // [r^1 .. r^s] (3 n_c x s; none without contacts); C = [c^0 .. c^{s-1}].
+  PetscErrorCode StepTangentSources(const Eigen::Ref<const Eigen::MatrixXd> &U, const Eigen::Ref<const Eigen::MatrixXd> &dU,
+                                    const Eigen::Ref<const Eigen::MatrixXd> &R, Eigen::MatrixXd &C);
   // Tangents in the modal coordinates q of (K, M), U = Phi q with Phi^T M Phi = I, where Phi^T C Phi
   // is diagonal too (no damping, Rayleigh damping, modal damping): P1 and P2 are then diagonal and a
   // tangent step costs O(n_c N) a column instead of O(N^2). *on: whether StepTangent may be given
@@ -259,7 +270,6 @@ private:
   void TangentUnknowns(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end); // tunk_ of a step
   Eigen::MatrixXd tAc_, trc_, tX_, tHv_, tGn_, tdrf_, tWG_, tYr_;
   Eigen::VectorXd tG3_;
-  Eigen::VectorXd tq_, tYm_;
   Eigen::LLT<Eigen::MatrixXd> llt_;                 // A, for the tangent in h
   PetscErrorCode StepTangentImpl(const Eigen::VectorXd &r, const Eigen::VectorXd &v_end, const StepData *step, const Eigen::RowVectorXd *dh,
                                  Eigen::MatrixXd &dU, Eigen::MatrixXd &ddU);
