@@ -715,6 +715,37 @@ TEST(Shooting, LinearisedPreconditionerTakesTheDenseNewtonIterates)
   }
 }
 
+// -shoot_ksp_eps1_stop: under Eisenstat-Walker with right preconditioning, the last Newton step
+// short of eps1 stops GMRES once its true residual (the next iterate's residual to first order) is
+// below 0.3 eps1 ||Z||; the next iterate then confirms. On the chain's cycle (GMRES on its bordered
+// system): the same Newton iterations, both cycles within eps1, the same period to the cycles'
+// residuals, and fewer tangent integrations with the stop than without it.
+TEST(Shooting, KrylovStopsWhereTheNextIterateMeetsEps1)
+{
+  ShootingResult res[2];
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-shoot_ksp_pc_side", "right"), 0);
+  for (int stop = 0; stop < 2; ++stop) {
+    Problem pr([](Model &m) { return BuildChain(PETSC_COMM_WORLD, ChainParams{}, m); });
+    ASSERT_TRUE(pr.est.found);
+    pr.sh.Floquet().compute = PETSC_FALSE;
+    pr.sh.jacobian_dense_max = 1; // GMRES on products
+    pr.sh.pre_periods        = 200; // from the flow near the cycle, as on the pads
+    pr.sh.pre_tol            = 0.02;
+    pr.sh.ksp_eps1_stop      = stop ? PETSC_TRUE : PETSC_FALSE;
+    ASSERT_EQ(pr.sh.Solve(pr.model, pr.eq, pr.ti, pr.est.U0, pr.est.dU0, pr.est.T0, res[stop]), 0);
+    ASSERT_TRUE(res[stop].converged) << "stop " << stop << ": " << res[stop].reason;
+  }
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-shoot_ksp_pc_side"), 0);
+  if (Rank0())
+    std::printf("%d / %d Newton iterations, %d / %d tangent integrations, final ||H|| / ||Z0|| %.2e / %.2e (without / with the stop)\n",
+                (int)res[0].iterations, (int)res[1].iterations, (int)res[0].tangent_evaluations, (int)res[1].tangent_evaluations,
+                (double)res[0].residual, (double)res[1].residual);
+  EXPECT_EQ(res[1].iterations, res[0].iterations);
+  EXPECT_LT(res[1].tangent_evaluations, res[0].tangent_evaluations);
+  for (const ShootingResult &r : res) EXPECT_LT(r.residual, 1e-5); // -shoot_eps1
+  EXPECT_NEAR(res[1].period / res[0].period, 1.0, 1e-7);
+}
+
 // Krylov recycling (-shoot_recycle): the Ritz vectors of the earlier solves, with their products
 // recomputed at the new iterate by one block tangent integration, make the preconditioner exact on
 // their span. On the 7 unknowns of the 3-DOF cycle the recycled space soon spans nearly all of it:
@@ -1247,14 +1278,15 @@ TEST(Shooting, ModalTangentFlowEqualsTheNodalOne)
 
 TEST(Shooting, TangentsInFloatAgreeWithDouble)
 {
-  // -theta_tangent_single: the tangents' products with their dense step matrices in float. Nodal:
-  // P1 - I, P2 and Y; modal: H^T Phi and its normal rows, and with the dense G (a damping the modes
-  // do not diagonalise) G - I and G (H^T Phi)^T too. On the 4-contact chain's cycle, a block of 5
+  // -theta_tangent_single: the tangents' products with their dense step matrices in float, and the
+  // closed points' step factors computed and kept in float. Nodal: P1 - I, P2 and Y; modal: H^T Phi
+  // and its normal rows, and with the dense G (a damping the modes do not diagonalise) G - I and
+  // G (H^T Phi)^T too. On the 4-contact chain's cycle, a block of 5
   // columns and one column against the double tangents: float's round-off carried over a period
   // (measured 2.7e-6 to 2.2e-5 relative, by the case and the random directions). The flows stay in
   // double: Newton converges to the same cycle (to its tolerance: its path differs with the
   // Jacobian, measured up to 1.8e-8), and the Floquet multipliers (the chain's dense monodromy, from
-  // the same tangents) move by 2e-7 to 9e-7. With P1 itself rounded, they had moved by 7.9e-6.
+  // the same tangents) move by 2e-7 to 1.1e-6. With P1 itself rounded, they had moved by 7.9e-6.
   struct Case {
     const char *name, *modal;
     bool        dense;

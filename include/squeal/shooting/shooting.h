@@ -200,6 +200,7 @@ public:
   // -shoot_linear_pc_single: that monodromy's squarings in single precision from 2N = 1024 on.
   PetscBool linear_pc_single = PETSC_TRUE;
   PetscBool ew            = PETSC_TRUE; // -shoot_ew: inexact Newton for GMRES on products (Eisenstat-Walker)
+  PetscBool ksp_eps1_stop = PETSC_TRUE; // -shoot_ksp_eps1_stop: GMRES stops where the next iterate meets eps1
   PetscBool monitor       = PETSC_FALSE; // -shoot_monitor: the pre-periods' and Newton's lines (also -shoot_snes_monitor)
   PetscInt  linear_pc_max = 6000;
   // -shoot_recycle: with -shoot_linear_pc, keep up to this many directions of the earlier Krylov
@@ -353,6 +354,7 @@ private:
   void           *ksp_default_ctx_ = nullptr; // KSPConvergedDefault's, wrapped by KrylovConverged
   PetscReal       rnorm0_          = 0;
   bool            confirm_only_    = false; // this Newton step only confirms |dT| / T < eps2
+  PetscReal       reach_ratio_     = 0;     // GMRES stops at this reduction: 0.3 eps1 ||Z|| / ||F|| (0: no such stop)
 
   MPI_Comm                 comm_;
   const Model             *model_ = nullptr;
