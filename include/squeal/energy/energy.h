@@ -41,7 +41,6 @@ struct EnergyEstimate {
   PetscReal              omega = 0, sigma = 0, q_sep = 0, q0 = 0, T0 = 0;
   PetscReal              q_max_factor = 0;  // the factor finally scanned (after any doublings)
   PetscInt               extensions = 0;    // doublings of the scan range used
-  PetscInt               root_evaluations = 0; // of the balance after the scan (BracketedRoot)
   bool                   found = false; // a + to - crossing exists in the scan range
   std::vector<PetscReal> q, P_damping, P_reactions, P_impacts; // P_impacts empty with -energy_impacts false
   bool                   impacts = false; // the balance holds the impact losses (7.6)
@@ -56,7 +55,7 @@ struct EnergyEstimate {
 
 // A root of f in [lo, hi] with f(lo) = f_lo > 0 >= f(hi) = f_hi: the bracket narrowed to
 // 2^-halvings of its width (or to adjacent doubles) by regula falsi with the Illinois rule and a
-// bisection whenever three steps did not halve it; *evaluations: the calls of f.
+// bisection every third step unless the two before it halved it; *evaluations: the calls of f.
 PetscReal BracketedRoot(const std::function<PetscReal(PetscReal)> &f, PetscReal lo, PetscReal f_lo, PetscReal hi, PetscReal f_hi, PetscInt halvings,
                         PetscInt *evaluations = nullptr);
 
