@@ -99,9 +99,9 @@ public:
     // reactions and velocities, not on the columns), kept by the caller so that later tangent
     // products along the same stored flow skip the O((3 n_c)^3) factorisation. Reset it (valid =
     // false) whenever the flow or the step size changes.
-    // With float products (-theta_tangent_single) the factors are kept rounded to float (luf, perm;
-    // lu emptied): half the memory, and the solves, which read a factor once per step from main
-    // memory, take half the time (docs/records.md, "Step factors in float").
+    // With float products (-theta_tangent_single) the factor is computed and kept in float (luf,
+    // perm; lu unused): half the memory, and the solves, which read a factor once per step from
+    // main memory, take half the time (docs/records.md, "Step factors in float").
     struct Factor {
       bool                                                              valid = false;
       Eigen::PartialPivLU<Eigen::MatrixXd>                              lu;
