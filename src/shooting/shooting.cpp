@@ -107,7 +107,7 @@ PetscErrorCode Shooting::SetFromOptions()
                              "(-shoot_snes_ksp_ew_* tune them) and a residual reduction of 1e-2 for the step that only confirms |dT|/T < eps2",
                              "Shooting", ew, &ew, nullptr));
   PetscCall(PetscOptionsBool("-ksp_eps1_stop",
-                             "With -shoot_ew and right preconditioning (-shoot_ksp_pc_side right, or -shoot_recycle): GMRES stops once "
+                             "With -shoot_ew and right preconditioning (the default with -shoot_linear_pc; -shoot_ksp_pc_side left: not): GMRES stops once "
                              "its residual would bring the next iterate below 0.3 eps1 (false: Eisenstat-Walker's tolerance alone)",
                              "Shooting", ksp_eps1_stop, &ksp_eps1_stop, nullptr));
   // Not SquealOptionsReal: PETSC_DECIDE (the model's default) is negative.
