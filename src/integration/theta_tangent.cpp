@@ -1,4 +1,4 @@
-// The exact tangent of the theta-method's step (ThetaIntegrator::StepTangent, StepTangentSource;
+// The exact tangent of the theta-method's step (ThetaIntegrator::StepTangent, StepTangentSource(s);
 // docs/method.md §6, "Exact tangent of the discrete step"): the derivative of (S4)-(S9) at the
 // converged reactions with every status held fixed, for shooting's Jacobian and monodromy matrix.
 // Dense back end only; the step itself is in theta.cpp.

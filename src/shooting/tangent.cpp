@@ -214,7 +214,7 @@ PetscErrorCode Shooting::TangentFlow(Vec x, const Eigen::MatrixXd &dZ0, const Ei
   bool           modal;
   PetscCall(ti_->ModalTangent(&modal));
   // Nodal tangents form their matrices at the first StepTangent, which on several ranks may run on
-  // rank 0 alone (below): form them on every rank first, for StepTangentSource to agree.
+  // rank 0 alone (below): form them on every rank first, for StepTangentSources to agree.
   if (size_ > 1 && !modal) PetscCall(ti_->EnsureNodalTangent());
   if (!trC_ready_) {
     // The h-sources depend on the base flow only: once per stored trajectory, all steps in
